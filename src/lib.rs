@@ -1,0 +1,2 @@
+//! rigcal: robot calibration.
+pub mod kinematics;
