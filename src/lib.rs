@@ -1,2 +1,21 @@
-//! rigcal: robot calibration.
+//! rigcal drives a robot-calibration measurement rig and turns what it measures into an accurate
+//! robot (seed 000: variable D-H parameter model with FCMAC).
+//!
+//! Data flows one way: devices → recordings → model → report.
+//!
+//! | module | holds |
+//! |---|---|
+//! | [`rig`] | rig files: chain, limits, calibration settings, instrument |
+//! | [`kinematics`] | the [`kinematics::Robot`] trait, serial chains, error parameters, IK |
+//! | [`recording`] | measurement recordings and their sidecar |
+//! | [`identification`] | identifiability, least squares, registration |
+//! | [`compensation`] | joint commands that bring the modelled arm to a target |
+//! | [`model`] | the versioned model file |
+//! | [`world`] | the simulated truth (read only by simulators and emulators) |
+pub mod compensation;
+pub mod identification;
 pub mod kinematics;
+pub mod model;
+pub mod recording;
+pub mod rig;
+pub mod world;

@@ -1,0 +1,160 @@
+//! Compensation (seed 000 section 3.2): joint commands that bring the modelled real arm to a
+//! target.
+//!
+//! q^n is the nominal inverse kinematics of the target; then q^c = q^n − dq^c is iterated:
+//! dq^c solves J(q)·dq = P_model(q) − target with J the position Jacobian over the moving
+//! joints at the current error parameters, until the modelled error is below the tolerance
+//! (1 nm by default, well under the 1 µm the method asks for). Error parameters come from an
+//! [`ErrorModel`], so constant, region-wise and learned parameters share one path.
+//! Units: mm and rad inside.
+
+use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkError, IkOptions, Robot};
+use nalgebra::{DMatrix, DVector, Vector3};
+
+/// Why a target cannot be compensated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum CompensationError {
+    /// The nominal inverse kinematics failed (unreachable, joint limit, singular).
+    #[error(transparent)]
+    Ik(#[from] IkError),
+    /// The corrected command leaves the joint limits.
+    #[error("target ({:.3}, {:.3}, {:.3}) mm: the compensated command puts joint {joint} at {value:.4} {unit}, outside {min}..{max} {unit}", target[0], target[1], target[2])]
+    JointLimit {
+        /// The target (mm).
+        target: [f64; 3],
+        /// Joint number (1-based).
+        joint: usize,
+        /// Commanded value (deg or mm).
+        value: f64,
+        /// Lower limit.
+        min: f64,
+        /// Upper limit.
+        max: f64,
+        /// `deg` or `mm`.
+        unit: &'static str,
+    },
+    /// The iteration did not bring the modelled error under the tolerance.
+    #[error("target ({:.3}, {:.3}, {:.3}) mm: compensation stopped {residual_mm:.2e} mm short after {iterations} iterations (is the target near a singular pose or a region boundary?)", target[0], target[1], target[2])]
+    NotConverged {
+        /// The target (mm).
+        target: [f64; 3],
+        /// Modelled error left (mm).
+        residual_mm: f64,
+        /// Iterations made.
+        iterations: usize,
+    },
+}
+
+/// Settings of compensation.
+#[derive(Debug, Clone)]
+pub struct CompensationOptions {
+    /// Modelled error to reach (mm).
+    pub tolerance_mm: f64,
+    /// Iteration cap.
+    pub max_iterations: usize,
+    /// Inverse-kinematics settings for q^n.
+    pub ik: IkOptions,
+}
+
+impl Default for CompensationOptions {
+    fn default() -> Self {
+        Self {
+            tolerance_mm: 1e-6,
+            max_iterations: 30,
+            ik: IkOptions::default(),
+        }
+    }
+}
+
+/// A compensated command.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Compensated {
+    /// Nominal solution q^n (rad or mm).
+    pub nominal: Vec<f64>,
+    /// Command q^c (rad or mm).
+    pub command: Vec<f64>,
+    /// Modelled position error left at q^c (mm).
+    pub residual_mm: f64,
+    /// Iterations made.
+    pub iterations: usize,
+}
+
+/// Compensates one target. `held[j] = Some(v)` keeps joint j at v; `seed` guides the nominal
+/// inverse kinematics (the previous point of a path, say).
+pub fn compensate(
+    robot: &dyn Robot,
+    model: &dyn ErrorModel,
+    target: &Vector3<f64>,
+    held: &[Option<f64>],
+    seed: Option<&[f64]>,
+    opts: &CompensationOptions,
+) -> Result<Compensated, CompensationError> {
+    let nominal_params = ErrorParams::zeros(robot.layout());
+    let nominal = solve_position_ik(robot, &nominal_params, target, held, seed, &opts.ik)?;
+    compensate_from(robot, model, target, held, nominal, opts)
+}
+
+/// Compensates a target whose nominal solution q^n is already known.
+pub fn compensate_from(
+    robot: &dyn Robot,
+    model: &dyn ErrorModel,
+    target: &Vector3<f64>,
+    held: &[Option<f64>],
+    nominal: Vec<f64>,
+    opts: &CompensationOptions,
+) -> Result<Compensated, CompensationError> {
+    let free: Vec<usize> = (0..robot.dof())
+        .filter(|&j| held.get(j).copied().flatten().is_none())
+        .collect();
+    let arr = [target.x, target.y, target.z];
+    let mut q = nominal.clone();
+    let mut residual = f64::INFINITY;
+    let mut iterations = 0;
+    while iterations < opts.max_iterations {
+        let e = model.params_at(&q);
+        let err = robot.position(&q, &e) - target;
+        residual = err.norm();
+        if residual <= opts.tolerance_mm {
+            break;
+        }
+        iterations += 1;
+        let j = robot.joint_jacobian(&q, &e);
+        let jf = DMatrix::from_fn(3, free.len(), |r, c| j[(r, free[c])]);
+        let svd = jf.svd(true, true);
+        let Ok(dq) = svd.solve(&DVector::from_column_slice(err.as_slice()), 1e-12) else {
+            break;
+        };
+        for (k, &jn) in free.iter().enumerate() {
+            q[jn] -= dq[k];
+        }
+    }
+    if residual > opts.tolerance_mm {
+        return Err(CompensationError::NotConverged {
+            target: arr,
+            residual_mm: residual,
+            iterations,
+        });
+    }
+    if let Some((jn, spec)) = robot
+        .joints()
+        .iter()
+        .enumerate()
+        .find(|(jn, s)| !s.within(q[*jn]))
+    {
+        return Err(CompensationError::JointLimit {
+            target: arr,
+            joint: jn + 1,
+            value: spec.kind.to_file_units(q[jn]),
+            min: spec.kind.to_file_units(spec.min),
+            max: spec.kind.to_file_units(spec.max),
+            unit: spec.kind.unit(),
+        });
+    }
+    Ok(Compensated {
+        nominal,
+        command: q,
+        residual_mm: residual,
+        iterations,
+    })
+}

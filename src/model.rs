@@ -1,0 +1,309 @@
+//! The model file: what calibration produced, versioned, with the rig it belongs to and what it
+//! was fitted from. JSON; parameters in mm and degrees.
+//!
+//! ```json
+//! { "format": "rigcal-model", "version": 1, "created_by": "rigcal 0.1.0",
+//!   "rig": { "name": "rv-m2", "path": "rigs/rv-m2.toml", "toml": "…" },
+//!   "fitted_from": { "recording": "out/rec", "measurements": 100 },
+//!   "model": { "type": "constant", "parameters": [ {"name": "theta0", "value": 0.05, "unit": "deg", "sigma": 0.001} ],
+//!              "fit": { … } } }
+//! ```
+
+use crate::identification::{FitResult, ResidualStats};
+use crate::kinematics::{ErrorModel, ErrorParams, Robot};
+use crate::rig::{Rig, RigError};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The `format` tag of a model file.
+pub const MODEL_FORMAT: &str = "rigcal-model";
+/// The version this build writes and reads.
+pub const MODEL_VERSION: u32 = 1;
+
+/// What went wrong with a model file.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ModelError {
+    /// The file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Not valid JSON, or a key is missing or mistyped.
+    #[error("{path}: line {line}, column {column}: {reason}")]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The parser's message.
+        reason: String,
+    },
+    /// Valid JSON that is not a model this version can use.
+    #[error("{path}: {reason}")]
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong and what to do.
+        reason: String,
+    },
+    /// The rig embedded in the model is not valid.
+    #[error("{path}: the embedded rig: {source}")]
+    Rig {
+        /// The file.
+        path: PathBuf,
+        /// The rig error.
+        source: RigError,
+    },
+}
+
+/// The rig a model belongs to, embedded so the model stands alone.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct RigRecord {
+    /// The rig's name.
+    pub name: String,
+    /// Where it was read from.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub path: Option<String>,
+    /// The rig file's text.
+    pub toml: String,
+}
+
+/// What the model was fitted from.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq, Default)]
+pub struct Provenance {
+    /// The recording (directory or CSV).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recording: Option<String>,
+    /// Measurements used.
+    pub measurements: usize,
+    /// Anything else worth knowing (scenario, seed, command line).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub notes: Option<String>,
+}
+
+/// One parameter in file units.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ParamEntry {
+    /// Name (`theta0`, `d1`, `frame.x`).
+    pub name: String,
+    /// Value (mm or deg).
+    pub value: f64,
+    /// `mm` or `deg`.
+    pub unit: String,
+    /// Standard deviation (same unit), when estimated.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sigma: Option<f64>,
+}
+
+/// How a constant-parameter fit went.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct FitSummary {
+    /// κ of eq. (4) at the solution (column-scaled, (σmax/σmin)²).
+    pub kappa_eq4: f64,
+    /// Residuals before the fit (nominal model).
+    pub before: ResidualStats,
+    /// Residuals after the fit.
+    pub after: ResidualStats,
+    /// Estimated noise per coordinate (mm).
+    pub sigma0_mm: f64,
+    /// Iterations.
+    pub iterations: usize,
+}
+
+/// The body of a model.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+#[serde(tag = "type", rename_all = "snake_case")]
+#[non_exhaustive]
+pub enum ModelBody {
+    /// Conventional calibration: one set of error parameters for the whole workspace.
+    Constant {
+        /// Fitted parameters (others are zero).
+        parameters: Vec<ParamEntry>,
+        /// How the fit went.
+        fit: FitSummary,
+    },
+}
+
+/// A model file.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct ModelFile {
+    /// Always `rigcal-model`.
+    pub format: String,
+    /// File format version.
+    pub version: u32,
+    /// The program that wrote it.
+    pub created_by: String,
+    /// The rig.
+    pub rig: RigRecord,
+    /// What it was fitted from.
+    pub fitted_from: Provenance,
+    /// The model.
+    pub model: ModelBody,
+}
+
+/// A model ready to use: its rig and its error parameters as a function of the pose.
+pub struct LoadedModel {
+    /// The rig embedded in the model.
+    pub rig: Rig,
+    /// The file as read.
+    pub file: ModelFile,
+    /// Error parameters by pose.
+    pub errors: Box<dyn ErrorModel>,
+}
+
+impl ModelFile {
+    /// A constant-parameter model from a fit.
+    pub fn constant(rig: &Rig, fit: &FitResult, provenance: Provenance) -> Self {
+        let layout = rig.chain.layout();
+        let parameters = fit
+            .free
+            .iter()
+            .zip(&fit.sigma)
+            .map(|(&i, &s)| {
+                let id = layout.ids()[i];
+                ParamEntry {
+                    name: layout.name(id),
+                    value: id.kind.to_file_units(fit.params.get(i)),
+                    unit: id.kind.unit().to_string(),
+                    sigma: Some(id.kind.to_file_units(s)),
+                }
+            })
+            .collect();
+        Self {
+            format: MODEL_FORMAT.into(),
+            version: MODEL_VERSION,
+            created_by: format!("rigcal {}", env!("CARGO_PKG_VERSION")),
+            rig: RigRecord {
+                name: rig.name.clone(),
+                path: rig.source.path.as_ref().map(|p| p.display().to_string()),
+                toml: rig.source.text.clone(),
+            },
+            fitted_from: provenance,
+            model: ModelBody::Constant {
+                parameters,
+                fit: FitSummary {
+                    kappa_eq4: fit.kappa,
+                    before: fit.before,
+                    after: fit.after,
+                    sigma0_mm: fit.sigma0_mm,
+                    iterations: fit.iterations,
+                },
+            },
+        }
+    }
+
+    /// Writes the model as pretty JSON.
+    pub fn save(&self, path: &Path) -> Result<(), ModelError> {
+        let text = serde_json::to_string_pretty(self).map_err(|e| ModelError::Format {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        std::fs::write(path, text + "\n").map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
+    }
+
+    /// Reads and checks a model file, and builds its rig and error model.
+    pub fn load(path: &Path) -> Result<LoadedModel, ModelError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ModelError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let value: serde_json::Value =
+            serde_json::from_str(&text).map_err(|e| json_error(path, &e))?;
+        let format = value.get("format").and_then(|v| v.as_str()).unwrap_or("");
+        if format != MODEL_FORMAT {
+            return Err(ModelError::Format {
+                path: path.to_path_buf(),
+                reason: format!("not a rigcal model (format is `{format}`, expected `{MODEL_FORMAT}`): pass the file written by `rigcal identify` or `rigcal calibrate`"),
+            });
+        }
+        let version = value.get("version").and_then(|v| v.as_u64()).unwrap_or(0);
+        if version != u64::from(MODEL_VERSION) {
+            return Err(ModelError::Format {
+                path: path.to_path_buf(),
+                reason: format!("model format version {version}; this rigcal reads version {MODEL_VERSION}: refit with this version"),
+            });
+        }
+        let file: ModelFile = serde_json::from_str(&text).map_err(|e| json_error(path, &e))?;
+        let rig_path = file
+            .rig
+            .path
+            .as_ref()
+            .map(PathBuf::from)
+            .unwrap_or_else(|| PathBuf::from("<embedded rig>"));
+        let rig =
+            Rig::parse(&file.rig.toml, Some(&rig_path)).map_err(|source| ModelError::Rig {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        let errors = file.error_model(&rig, path)?;
+        Ok(LoadedModel { rig, file, errors })
+    }
+
+    fn error_model(&self, rig: &Rig, path: &Path) -> Result<Box<dyn ErrorModel>, ModelError> {
+        match &self.model {
+            ModelBody::Constant { parameters, .. } => {
+                Ok(Box::new(params_from_entries(rig, parameters, path)?))
+            }
+        }
+    }
+}
+
+/// Error parameters from file entries; unknown names are an error.
+pub fn params_from_entries(
+    rig: &Rig,
+    entries: &[ParamEntry],
+    path: &Path,
+) -> Result<ErrorParams, ModelError> {
+    let layout = rig.chain.layout();
+    let mut e = ErrorParams::zeros(layout);
+    for p in entries {
+        let Some(id) = layout.find(&p.name) else {
+            return Err(ModelError::Format {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "parameter `{}` does not exist in rig `{}`",
+                    p.name, rig.name
+                ),
+            });
+        };
+        if p.unit != id.kind.unit() {
+            return Err(ModelError::Format {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "parameter `{}` is in `{}`; expected `{}`",
+                    p.name,
+                    p.unit,
+                    id.kind.unit()
+                ),
+            });
+        }
+        if !p.value.is_finite() {
+            return Err(ModelError::Format {
+                path: path.to_path_buf(),
+                reason: format!("parameter `{}` is not a finite number", p.name),
+            });
+        }
+        if let Some(i) = layout.index_of(id) {
+            e.set(i, id.kind.from_file_units(p.value));
+        }
+    }
+    Ok(e)
+}
+
+fn json_error(path: &Path, e: &serde_json::Error) -> ModelError {
+    ModelError::Json {
+        path: path.to_path_buf(),
+        line: e.line(),
+        column: e.column(),
+        reason: e.to_string(),
+    }
+}

@@ -1,0 +1,831 @@
+//! Recordings (spec/recordings.md): `measurements.csv` with one row per arm move, and the
+//! optional `session.toml` beside it. Files hold millimetres and degrees; a [`Measurement`]
+//! holds internal units (joint values in rad or mm, positions in mm).
+//!
+//! Reading finds columns by name, keeps unknown columns, and rejects bad rows with the file,
+//! line and column named: nothing is silently dropped. Writing appends and flushes row by row
+//! so a session killed at any instant leaves valid CSV (at worst a torn last line, which
+//! [`RecordingWriter::open_append`] detects and discards).
+
+use crate::kinematics::JointSpec;
+use nalgebra::Vector3;
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::fs::{File, OpenOptions};
+use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+
+/// The CSV file name inside a recording directory.
+pub const MEASUREMENTS_CSV: &str = "measurements.csv";
+/// The sidecar file name inside a recording directory.
+pub const SESSION_TOML: &str = "session.toml";
+
+/// What went wrong reading or writing a recording.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RecordingError {
+    /// A file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A required column is missing from the header.
+    #[error("{path}: line 1: missing column `{column}` (the header needs seq, t_s, {joints}, x_mm, y_mm, z_mm)")]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The column.
+        column: String,
+        /// The joint columns this rig expects.
+        joints: String,
+    },
+    /// A value is missing, not a number, or out of range.
+    #[error("{path}: line {line}, column {column} (`{name}`): {reason}")]
+    BadValue {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// 1-based column.
+        column: usize,
+        /// Column name.
+        name: String,
+        /// What is wrong.
+        reason: String,
+    },
+    /// The CSV itself is malformed (a row with the wrong number of fields, bad UTF-8, …).
+    #[error("{path}: line {line}: {reason}")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: u64,
+        /// What is wrong.
+        reason: String,
+    },
+    /// `session.toml` is not valid.
+    #[error("{path}: {reason}")]
+    Session {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message.
+        reason: String,
+    },
+}
+
+/// What a row records.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum Status {
+    /// A measurement.
+    #[default]
+    Ok,
+    /// A move without a measurement (registration, clearance, retries).
+    Via,
+    /// A point given up, with the reason.
+    Skipped(String),
+}
+
+impl Status {
+    fn parse(s: &str) -> Option<Status> {
+        match s.trim() {
+            "" | "ok" => Some(Status::Ok),
+            "via" => Some(Status::Via),
+            other => other
+                .strip_prefix("skipped")
+                .map(|r| Status::Skipped(r.trim_start_matches(':').trim().to_string())),
+        }
+    }
+
+    fn as_text(&self) -> String {
+        match self {
+            Status::Ok => "ok".into(),
+            Status::Via => "via".into(),
+            Status::Skipped(r) => format!("skipped: {r}"),
+        }
+    }
+}
+
+/// One row of a recording, in internal units.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Measurement {
+    /// Measurement number, increasing.
+    pub seq: u64,
+    /// Seconds since the session started (None in an import without time).
+    pub t_s: Option<f64>,
+    /// Commanded joint values (rad or mm).
+    pub q: Vec<f64>,
+    /// Measured point, world frame (mm); None on rows that are not `ok`.
+    pub position: Option<Vector3<f64>>,
+    /// Region id (`ref` marks a drift-reference pose).
+    pub region: Option<String>,
+    /// The same point in the table frame (mm).
+    pub table: Option<Vector3<f64>>,
+    /// Panel offset (mm).
+    pub panel_uv: Option<[f64; 2]>,
+    /// Temperature (°C).
+    pub temp_c: Option<f64>,
+    /// Payload (kg).
+    pub load_kg: Option<f64>,
+    /// What the row records.
+    pub status: Status,
+    /// Values of the recording's unknown columns, in [`Recording::extra_columns`] order.
+    pub extra: Vec<String>,
+}
+
+/// `session.toml`: what made a recording. Every key is optional; unknown keys are kept.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct SessionInfo {
+    /// Rig file used.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rig: Option<String>,
+    /// Scenario file (simulated worlds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scenario: Option<String>,
+    /// Seed of the simulated world.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seed: Option<u64>,
+    /// Start time (RFC 3339) or a description of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub start_time: Option<String>,
+    /// The table-to-world registration applied to `x_mm…`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub registration: Option<RegistrationInfo>,
+    /// Free text.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub notes: Option<String>,
+    /// Keys this version does not know.
+    #[serde(flatten)]
+    pub extra: toml::Table,
+}
+
+/// A rigid registration in file units: world = R(rpy) · table + translation.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct RegistrationInfo {
+    /// Translation (mm).
+    pub translation_mm: [f64; 3],
+    /// Roll, pitch, yaw (deg; R = Rz(yaw)·Ry(pitch)·Rx(roll)).
+    pub rpy_deg: [f64; 3],
+    /// RMS residual of the registration fit (mm).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rms_mm: Option<f64>,
+}
+
+/// A recording in memory.
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    /// The joints, in the rig's order.
+    pub joints: Vec<JointSpec>,
+    /// Rows in the order taken.
+    pub rows: Vec<Measurement>,
+    /// Names of columns this format does not define, kept in order.
+    pub extra_columns: Vec<String>,
+    /// The sidecar, when present.
+    pub session: Option<SessionInfo>,
+}
+
+impl Recording {
+    /// An empty recording for these joints.
+    pub fn new(joints: &[JointSpec]) -> Self {
+        Self {
+            joints: joints.to_vec(),
+            ..Default::default()
+        }
+    }
+
+    /// The rows that are measurements (`status` ok), with their positions.
+    pub fn measured(&self) -> impl Iterator<Item = (&Measurement, Vector3<f64>)> {
+        self.rows
+            .iter()
+            .filter(|m| m.status == Status::Ok)
+            .filter_map(|m| m.position.map(|p| (m, p)))
+    }
+
+    /// Reads a recording directory (or a bare CSV file).
+    pub fn read(path: &Path, joints: &[JointSpec]) -> Result<Recording, RecordingError> {
+        let (csv_path, dir) = if path.is_dir() {
+            (path.join(MEASUREMENTS_CSV), Some(path.to_path_buf()))
+        } else {
+            (path.to_path_buf(), None)
+        };
+        let file = File::open(&csv_path).map_err(|source| RecordingError::Io {
+            path: csv_path.clone(),
+            source,
+        })?;
+        let mut rec = read_csv(file, &csv_path, joints)?;
+        if let Some(dir) = dir {
+            let toml_path = dir.join(SESSION_TOML);
+            if toml_path.exists() {
+                let text =
+                    std::fs::read_to_string(&toml_path).map_err(|source| RecordingError::Io {
+                        path: toml_path.clone(),
+                        source,
+                    })?;
+                let info: SessionInfo =
+                    toml::from_str(&text).map_err(|e| RecordingError::Session {
+                        path: toml_path.clone(),
+                        reason: e.to_string(),
+                    })?;
+                rec.session = Some(info);
+            }
+        }
+        Ok(rec)
+    }
+
+    /// Writes the recording as a directory: `measurements.csv` and, when present, `session.toml`.
+    pub fn write_dir(&self, dir: &Path) -> Result<(), RecordingError> {
+        std::fs::create_dir_all(dir).map_err(|source| RecordingError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let mut w = RecordingWriter::create(
+            &dir.join(MEASUREMENTS_CSV),
+            &self.joints,
+            &self.extra_columns,
+        )?;
+        for m in &self.rows {
+            w.append(m)?;
+        }
+        if let Some(info) = &self.session {
+            write_session(dir, info)?;
+        }
+        Ok(())
+    }
+}
+
+/// Writes `session.toml` into a recording directory.
+pub fn write_session(dir: &Path, info: &SessionInfo) -> Result<(), RecordingError> {
+    let path = dir.join(SESSION_TOML);
+    let text = toml::to_string_pretty(info).map_err(|e| RecordingError::Session {
+        path: path.clone(),
+        reason: e.to_string(),
+    })?;
+    std::fs::write(&path, text).map_err(|source| RecordingError::Io { path, source })
+}
+
+const OPTIONAL: [&str; 10] = [
+    "region",
+    "table_x_mm",
+    "table_y_mm",
+    "table_z_mm",
+    "panel_u_mm",
+    "panel_v_mm",
+    "temp_c",
+    "load_kg",
+    "status",
+    "t_s",
+];
+
+struct Columns {
+    seq: usize,
+    t_s: usize,
+    q: Vec<usize>,
+    xyz: [usize; 3],
+    region: Option<usize>,
+    table: Option<[usize; 3]>,
+    panel: Option<[usize; 2]>,
+    temp: Option<usize>,
+    load: Option<usize>,
+    status: Option<usize>,
+    extra: Vec<usize>,
+}
+
+fn read_csv<R: std::io::Read>(
+    input: R,
+    path: &Path,
+    joints: &[JointSpec],
+) -> Result<Recording, RecordingError> {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(true)
+        .flexible(false)
+        .from_reader(input);
+    let headers = reader
+        .headers()
+        .map_err(|e| malformed(path, &e))?
+        .iter()
+        .map(|h| h.trim().to_string())
+        .collect::<Vec<_>>();
+    let joint_cols: Vec<String> = joints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| j.kind.column(i + 1))
+        .collect();
+    let find = |name: &str| headers.iter().position(|h| h == name);
+    let require = |name: &str| {
+        find(name).ok_or_else(|| RecordingError::MissingColumn {
+            path: path.to_path_buf(),
+            column: name.to_string(),
+            joints: joint_cols.join(", "),
+        })
+    };
+    let q = joint_cols
+        .iter()
+        .map(|c| require(c))
+        .collect::<Result<Vec<_>, _>>()?;
+    let cols = Columns {
+        seq: require("seq")?,
+        t_s: require("t_s")?,
+        xyz: [require("x_mm")?, require("y_mm")?, require("z_mm")?],
+        region: find("region"),
+        table: match (find("table_x_mm"), find("table_y_mm"), find("table_z_mm")) {
+            (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+            _ => None,
+        },
+        panel: match (find("panel_u_mm"), find("panel_v_mm")) {
+            (Some(a), Some(b)) => Some([a, b]),
+            _ => None,
+        },
+        temp: find("temp_c"),
+        load: find("load_kg"),
+        status: find("status"),
+        extra: (0..headers.len())
+            .filter(|&i| {
+                let h = headers[i].as_str();
+                !(h == "seq"
+                    || ["x_mm", "y_mm", "z_mm"].contains(&h)
+                    || OPTIONAL.contains(&h)
+                    || joint_cols.iter().any(|c| c == h))
+            })
+            .collect(),
+        q,
+    };
+    let mut rec = Recording::new(joints);
+    rec.extra_columns = cols.extra.iter().map(|&i| headers[i].clone()).collect();
+    let mut last_seq: Option<u64> = None;
+    for result in reader.records() {
+        let record = result.map_err(|e| malformed(path, &e))?;
+        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let row = RowReader {
+            path,
+            line,
+            record: &record,
+            headers: &headers,
+        };
+        let m = row.measurement(&cols, joints)?;
+        if let Some(prev) = last_seq {
+            if m.seq <= prev {
+                return Err(row.bad(
+                    cols.seq,
+                    format!("seq {} does not increase (previous row has {prev})", m.seq),
+                ));
+            }
+        }
+        last_seq = Some(m.seq);
+        rec.rows.push(m);
+    }
+    Ok(rec)
+}
+
+fn malformed(path: &Path, e: &csv::Error) -> RecordingError {
+    let line = e.position().map(|p| p.line()).unwrap_or(0);
+    let reason = match e.kind() {
+        csv::ErrorKind::UnequalLengths {
+            expected_len, len, ..
+        } => {
+            format!("row has {len} fields, the header has {expected_len}")
+        }
+        csv::ErrorKind::Utf8 { .. } => "not valid UTF-8".to_string(),
+        _ => e.to_string(),
+    };
+    RecordingError::Malformed {
+        path: path.to_path_buf(),
+        line,
+        reason,
+    }
+}
+
+struct RowReader<'a> {
+    path: &'a Path,
+    line: u64,
+    record: &'a csv::StringRecord,
+    headers: &'a [String],
+}
+
+impl RowReader<'_> {
+    fn bad(&self, col: usize, reason: impl Into<String>) -> RecordingError {
+        RecordingError::BadValue {
+            path: self.path.to_path_buf(),
+            line: self.line,
+            column: col + 1,
+            name: self.headers.get(col).cloned().unwrap_or_default(),
+            reason: reason.into(),
+        }
+    }
+
+    fn text(&self, col: usize) -> &str {
+        self.record.get(col).unwrap_or("").trim()
+    }
+
+    fn number(&self, col: usize) -> Result<Option<f64>, RecordingError> {
+        let t = self.text(col);
+        if t.is_empty() {
+            return Ok(None);
+        }
+        match t.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(Some(v)),
+            Ok(_) => Err(self.bad(col, format!("`{t}` is not a finite number"))),
+            Err(_) => Err(self.bad(col, format!("`{t}` is not a number"))),
+        }
+    }
+
+    fn required(&self, col: usize) -> Result<f64, RecordingError> {
+        self.number(col)?
+            .ok_or_else(|| self.bad(col, "value missing"))
+    }
+
+    fn measurement(
+        &self,
+        cols: &Columns,
+        joints: &[JointSpec],
+    ) -> Result<Measurement, RecordingError> {
+        let seq_text = self.text(cols.seq);
+        let seq = seq_text
+            .parse::<u64>()
+            .map_err(|_| self.bad(cols.seq, format!("`{seq_text}` is not a whole number ≥ 0")))?;
+        let status = match cols.status {
+            Some(c) => Status::parse(self.text(c)).ok_or_else(|| {
+                self.bad(
+                    c,
+                    format!("`{}` is not ok, via or skipped: REASON", self.text(c)),
+                )
+            })?,
+            None => Status::Ok,
+        };
+        let mut q = Vec::with_capacity(joints.len());
+        for (spec, &c) in joints.iter().zip(&cols.q) {
+            let v = spec.kind.from_file_units(self.required(c)?);
+            if !spec.within(v) {
+                return Err(self.bad(
+                    c,
+                    format!(
+                        "{} {} is outside joint {}'s limits {}..{} {}",
+                        self.text(c),
+                        spec.kind.unit(),
+                        spec.name,
+                        spec.kind.to_file_units(spec.min),
+                        spec.kind.to_file_units(spec.max),
+                        spec.kind.unit()
+                    ),
+                ));
+            }
+            q.push(v);
+        }
+        let xyz = [
+            self.number(cols.xyz[0])?,
+            self.number(cols.xyz[1])?,
+            self.number(cols.xyz[2])?,
+        ];
+        let position = match (status == Status::Ok, xyz) {
+            (_, [Some(x), Some(y), Some(z)]) => Some(Vector3::new(x, y, z)),
+            (false, [None, None, None]) => None,
+            _ => {
+                let k = xyz.iter().position(Option::is_none).unwrap_or(0);
+                return Err(self.bad(cols.xyz[k], "value missing in a measured (ok) row"));
+            }
+        };
+        let triple = |c: Option<[usize; 3]>| -> Result<Option<Vector3<f64>>, RecordingError> {
+            let Some(c) = c else { return Ok(None) };
+            match [self.number(c[0])?, self.number(c[1])?, self.number(c[2])?] {
+                [Some(a), Some(b), Some(d)] => Ok(Some(Vector3::new(a, b, d))),
+                [None, None, None] => Ok(None),
+                v => Err(self.bad(
+                    c[v.iter().position(Option::is_none).unwrap_or(0)],
+                    "a table coordinate is missing while the others are present",
+                )),
+            }
+        };
+        let panel_uv = match cols.panel {
+            Some(c) => match (self.number(c[0])?, self.number(c[1])?) {
+                (Some(u), Some(v)) => Some([u, v]),
+                (None, None) => None,
+                _ => return Err(self.bad(c[0], "panel u and v must both be present or both empty")),
+            },
+            None => None,
+        };
+        let opt = |c: Option<usize>| c.map(|c| self.number(c)).transpose().map(Option::flatten);
+        Ok(Measurement {
+            seq,
+            t_s: self.number(cols.t_s)?,
+            q,
+            position,
+            region: cols
+                .region
+                .map(|c| self.text(c).to_string())
+                .filter(|s| !s.is_empty()),
+            table: triple(cols.table)?,
+            panel_uv,
+            temp_c: opt(cols.temp)?,
+            load_kg: opt(cols.load)?,
+            status,
+            extra: cols
+                .extra
+                .iter()
+                .map(|&c| self.text(c).to_string())
+                .collect(),
+        })
+    }
+}
+
+/// Appends rows to `measurements.csv`, flushing (and syncing) each before returning.
+pub struct RecordingWriter {
+    file: File,
+    path: PathBuf,
+    joints: Vec<JointSpec>,
+    extra_columns: Vec<String>,
+    sync: bool,
+}
+
+impl RecordingWriter {
+    /// Creates (or truncates) a CSV and writes its header.
+    pub fn create(
+        path: &Path,
+        joints: &[JointSpec],
+        extra_columns: &[String],
+    ) -> Result<Self, RecordingError> {
+        let file = File::create(path).map_err(|source| RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let mut w = Self {
+            file,
+            path: path.to_path_buf(),
+            joints: joints.to_vec(),
+            extra_columns: extra_columns.to_vec(),
+            sync: false,
+        };
+        let header = header(joints, extra_columns);
+        w.write_line(&header)?;
+        Ok(w)
+    }
+
+    /// Opens an existing CSV for appending after a crash: a torn last line (no trailing newline)
+    /// is cut off. Returns the writer and whether a torn line was discarded.
+    pub fn open_append(
+        path: &Path,
+        joints: &[JointSpec],
+        extra_columns: &[String],
+    ) -> Result<(Self, bool), RecordingError> {
+        let io = |source| RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(path)
+            .map_err(io)?;
+        let mut keep = 0u64;
+        let mut torn = false;
+        {
+            let mut reader = BufReader::new(&mut file);
+            let mut buf = Vec::new();
+            loop {
+                buf.clear();
+                let n = reader.read_until(b'\n', &mut buf).map_err(io)?;
+                if n == 0 {
+                    break;
+                }
+                if buf.last() == Some(&b'\n') {
+                    keep += n as u64;
+                } else {
+                    torn = true;
+                }
+            }
+        }
+        file.set_len(keep).map_err(io)?;
+        file.seek(SeekFrom::End(0)).map_err(io)?;
+        Ok((
+            Self {
+                file,
+                path: path.to_path_buf(),
+                joints: joints.to_vec(),
+                extra_columns: extra_columns.to_vec(),
+                sync: false,
+            },
+            torn,
+        ))
+    }
+
+    /// Makes every append also `fsync` the file (for sessions on the rig).
+    pub fn sync_each_row(mut self, on: bool) -> Self {
+        self.sync = on;
+        self
+    }
+
+    /// Appends one row and flushes it to the operating system (and disk, with sync on).
+    pub fn append(&mut self, m: &Measurement) -> Result<(), RecordingError> {
+        let line = row_text(m, &self.joints, self.extra_columns.len());
+        self.write_line(&line)
+    }
+
+    fn write_line(&mut self, line: &str) -> Result<(), RecordingError> {
+        let io = |source| RecordingError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut bytes = String::with_capacity(line.len() + 1);
+        bytes.push_str(line);
+        bytes.push('\n');
+        self.file.write_all(bytes.as_bytes()).map_err(io)?;
+        self.file.flush().map_err(io)?;
+        if self.sync {
+            self.file.sync_data().map_err(io)?;
+        }
+        Ok(())
+    }
+}
+
+/// The header line for these joints.
+pub fn header(joints: &[JointSpec], extra: &[String]) -> String {
+    let mut cols: Vec<String> = vec!["seq".into(), "t_s".into()];
+    cols.extend(joints.iter().enumerate().map(|(i, j)| j.kind.column(i + 1)));
+    for c in [
+        "x_mm",
+        "y_mm",
+        "z_mm",
+        "region",
+        "table_x_mm",
+        "table_y_mm",
+        "table_z_mm",
+        "panel_u_mm",
+        "panel_v_mm",
+        "temp_c",
+        "load_kg",
+        "status",
+    ] {
+        cols.push(c.into());
+    }
+    cols.extend(extra.iter().map(|c| csv_field(c)));
+    cols.join(",")
+}
+
+fn row_text(m: &Measurement, joints: &[JointSpec], n_extra: usize) -> String {
+    let mut s = String::new();
+    let _ = write!(s, "{},", m.seq);
+    if let Some(t) = m.t_s {
+        let _ = write!(s, "{t:.3}");
+    }
+    for (spec, v) in joints.iter().zip(&m.q) {
+        let _ = write!(s, ",{:.6}", spec.kind.to_file_units(*v));
+    }
+    push_opt_vec(&mut s, m.position.as_ref());
+    s.push(',');
+    if let Some(r) = &m.region {
+        s.push_str(&csv_field(r));
+    }
+    push_opt_vec(&mut s, m.table.as_ref());
+    match m.panel_uv {
+        Some([u, v]) => {
+            let _ = write!(s, ",{u:.5},{v:.5}");
+        }
+        None => s.push_str(",,"),
+    }
+    for v in [m.temp_c, m.load_kg] {
+        s.push(',');
+        if let Some(v) = v {
+            let _ = write!(s, "{v}");
+        }
+    }
+    s.push(',');
+    s.push_str(&csv_field(&m.status.as_text()));
+    for k in 0..n_extra {
+        s.push(',');
+        s.push_str(&csv_field(m.extra.get(k).map(String::as_str).unwrap_or("")));
+    }
+    s
+}
+
+fn push_opt_vec(s: &mut String, v: Option<&Vector3<f64>>) {
+    match v {
+        Some(p) => {
+            let _ = write!(s, ",{:.5},{:.5},{:.5}", p.x, p.y, p.z);
+        }
+        None => s.push_str(",,,"),
+    }
+}
+
+fn csv_field(v: &str) -> String {
+    if v.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", v.replace('"', "\"\""))
+    } else {
+        v.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kinematics::JointKind;
+
+    fn joints() -> Vec<JointSpec> {
+        vec![
+            JointSpec {
+                name: "J1".into(),
+                kind: JointKind::Revolute,
+                min: (-150f64).to_radians(),
+                max: 150f64.to_radians(),
+            },
+            JointSpec {
+                name: "lift".into(),
+                kind: JointKind::Prismatic,
+                min: 0.0,
+                max: 500.0,
+            },
+        ]
+    }
+
+    #[test]
+    fn row_text_is_literal() {
+        let m = Measurement {
+            seq: 7,
+            t_s: Some(12.5),
+            q: vec![30f64.to_radians(), 100.25],
+            position: Some(Vector3::new(1.0, -2.5, 3.125)),
+            region: Some("r3".into()),
+            status: Status::Ok,
+            ..Default::default()
+        };
+        assert_eq!(header(&joints(), &[]), "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm,region,table_x_mm,table_y_mm,table_z_mm,panel_u_mm,panel_v_mm,temp_c,load_kg,status");
+        assert_eq!(
+            row_text(&m, &joints(), 0),
+            "7,12.500,30.000000,100.250000,1.00000,-2.50000,3.12500,r3,,,,,,,,ok"
+        );
+    }
+
+    #[test]
+    fn reads_back_what_it_writes_and_keeps_unknown_columns() {
+        let text = "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm,operator,status\n1,0.5,10,20,1,2,3,ann,ok\n2,,11,21,,,,bob,via\n3,1.5,12,22,,,,,skipped: no contact\n";
+        let rec = read_csv(text.as_bytes(), Path::new("r.csv"), &joints()).unwrap();
+        assert_eq!(rec.rows.len(), 3);
+        assert_eq!(rec.extra_columns, vec!["operator"]);
+        assert_eq!(rec.rows[1].status, Status::Via);
+        assert_eq!(rec.rows[2].status, Status::Skipped("no contact".into()));
+        assert_eq!(rec.rows[0].extra, vec!["ann"]);
+        assert!((rec.rows[0].q[0] - 10f64.to_radians()).abs() < 1e-15);
+        assert_eq!(rec.measured().count(), 1);
+    }
+
+    #[test]
+    fn bad_rows_name_line_and_column() {
+        let cases = [
+            (
+                "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,10,20,1,2,abc\n",
+                "line 2, column 7 (`z_mm`)",
+                "not a number",
+            ),
+            (
+                "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,10,20,1,2,3\n2,0,170,20,1,2,3\n",
+                "line 3, column 3 (`q1_deg`)",
+                "outside joint J1",
+            ),
+            (
+                "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n2,0,10,20,1,2,3\n2,0,10,20,1,2,3\n",
+                "line 3, column 1 (`seq`)",
+                "does not increase",
+            ),
+            (
+                "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,10,20,1,,3\n",
+                "line 2, column 6 (`y_mm`)",
+                "missing",
+            ),
+            (
+                "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,NaN,20,1,2,3\n",
+                "line 2, column 3",
+                "not a finite number",
+            ),
+            (
+                "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,10,20,1,2\n",
+                "line 2",
+                "6 fields",
+            ),
+            (
+                "seq,t_s,q1_deg,x_mm,y_mm,z_mm\n",
+                "missing column `q2_mm`",
+                "",
+            ),
+        ];
+        for (text, place, what) in cases {
+            let e = read_csv(text.as_bytes(), Path::new("r.csv"), &joints())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(place) && e.contains(what), "{e}");
+            assert!(e.starts_with("r.csv"), "{e}");
+        }
+    }
+
+    #[test]
+    fn torn_last_line_is_discarded_on_append() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("m.csv");
+        std::fs::write(&path, "seq,t_s\n1,0\n2,0.5\n3,1.").unwrap();
+        let (mut w, torn) = RecordingWriter::open_append(&path, &[], &[]).unwrap();
+        assert!(torn);
+        w.write_line("3,1.0").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&path).unwrap(),
+            "seq,t_s\n1,0\n2,0.5\n3,1.0\n"
+        );
+    }
+}
