@@ -12,6 +12,7 @@
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
 //! | [`model`] | the versioned model file |
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
+pub mod cli;
 pub mod compensation;
 pub mod identification;
 pub mod kinematics;

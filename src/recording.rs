@@ -829,3 +829,78 @@ mod tests {
         );
     }
 }
+
+/// A compensation target: a position, or joint values whose nominal position is the target.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Target {
+    /// World position (mm).
+    Position(Vector3<f64>),
+    /// Joint values (rad or mm).
+    Joints(Vec<f64>),
+}
+
+/// Reads a targets CSV: columns `x_mm,y_mm,z_mm`, or one column per joint (`q1_deg…`). Returns
+/// each target with its line number.
+pub fn read_targets(
+    path: &Path,
+    joints: &[JointSpec],
+) -> Result<Vec<(u64, Target)>, RecordingError> {
+    let file = File::open(path).map_err(|source| RecordingError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let mut reader = csv::ReaderBuilder::new().from_reader(file);
+    let headers: Vec<String> = reader
+        .headers()
+        .map_err(|e| malformed(path, &e))?
+        .iter()
+        .map(|h| h.trim().to_string())
+        .collect();
+    let find = |n: &str| headers.iter().position(|h| h == n);
+    let joint_cols: Vec<String> = joints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| j.kind.column(i + 1))
+        .collect();
+    let xyz = [find("x_mm"), find("y_mm"), find("z_mm")];
+    let q: Vec<Option<usize>> = joint_cols.iter().map(|c| find(c)).collect();
+    let by_position = xyz.iter().all(Option::is_some);
+    if !by_position && q.iter().any(Option::is_none) {
+        return Err(RecordingError::MissingColumn {
+            path: path.to_path_buf(),
+            column: "x_mm,y_mm,z_mm (or every joint column)".into(),
+            joints: joint_cols.join(", "),
+        });
+    }
+    let mut out = Vec::new();
+    for result in reader.records() {
+        let record = result.map_err(|e| malformed(path, &e))?;
+        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let row = RowReader {
+            path,
+            line,
+            record: &record,
+            headers: &headers,
+        };
+        let target = if by_position {
+            let v: Vec<f64> = xyz
+                .iter()
+                .flatten()
+                .map(|&c| row.required(c))
+                .collect::<Result<_, _>>()?;
+            Target::Position(Vector3::new(v[0], v[1], v[2]))
+        } else {
+            let mut values = Vec::new();
+            for (spec, c) in joints.iter().zip(q.iter().flatten()) {
+                let v = spec.kind.from_file_units(row.required(*c)?);
+                if !spec.within(v) {
+                    return Err(row.bad(*c, format!("outside joint {}'s limits", spec.name)));
+                }
+                values.push(v);
+            }
+            Target::Joints(values)
+        };
+        out.push((line, target));
+    }
+    Ok(out)
+}

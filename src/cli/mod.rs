@@ -1,0 +1,120 @@
+//! The command line: one module per subcommand (clap derive). The only place that uses `anyhow`.
+
+mod compensate;
+mod demo;
+mod identify;
+mod observability;
+mod register;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// rigcal — calibrate a robot arm from position measurements.
+///
+/// Files hold millimetres and degrees. Start with `rigcal demo` for a full simulated run, or
+/// `rigcal observability --rig rigs/rv-m2.toml` to see what a rig can identify.
+#[derive(Debug, Parser)]
+#[command(name = "rigcal", version, about, long_about = None, propagate_version = true)]
+pub struct Cli {
+    /// More log output (-v info, -vv debug). RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    verbose: u8,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Simulate an RV-M2 with the paper's geometric errors, identify them, and show the accuracy
+    /// before and after on fresh poses and along the paper's Fig. 6 path.
+    Demo(demo::Args),
+    /// Which error parameters position measurements can identify for a rig, and why not the rest.
+    Observability(observability::Args),
+    /// Identify the kinematic error parameters from a recording (conventional calibration).
+    Identify(identify::Args),
+    /// Fit the rigid transform between the instrument's frame and the world.
+    Register(register::Args),
+    /// Joint commands that bring the calibrated arm to target positions.
+    Compensate(compensate::Args),
+}
+
+/// Runs the command line and returns the process exit code.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    init_logging(cli.verbose);
+    let result = match cli.command {
+        Command::Demo(a) => demo::run(a),
+        Command::Observability(a) => observability::run(a),
+        Command::Identify(a) => identify::run(a),
+        Command::Register(a) => register::run(a),
+        Command::Compensate(a) => compensate::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn init_logging(verbose: u8) {
+    let default = match verbose {
+        0 => "warn",
+        1 => "info",
+        _ => "debug",
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new(default));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .with_target(false)
+        .try_init();
+}
+
+/// Observations (joint values, measured point) from a recording's measured rows.
+pub(crate) fn observations(
+    rec: &crate::recording::Recording,
+) -> Vec<crate::identification::Observation> {
+    rec.measured()
+        .map(|(m, p)| crate::identification::Observation { q: m.q.clone(), p })
+        .collect()
+}
+
+/// A table of parameter values for the terminal.
+pub(crate) fn parameter_table(
+    layout: &crate::kinematics::ParamLayout,
+    fit: &crate::identification::FitResult,
+    truth: Option<&crate::kinematics::ErrorParams>,
+) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = write!(s, "  {:<10} {:>11} {:>10}", "parameter", "value", "σ");
+    if truth.is_some() {
+        let _ = write!(s, " {:>11} {:>6}", "injected", "dev/σ");
+    }
+    s.push('\n');
+    for (k, &i) in fit.free.iter().enumerate() {
+        let id = layout.ids()[i];
+        let v = id.kind.to_file_units(fit.params.get(i));
+        let sd = id.kind.to_file_units(fit.sigma[k]);
+        let _ = write!(
+            s,
+            "  {:<10} {:>+11.5} {:>10.5} {}",
+            layout.symbol(id),
+            v,
+            sd,
+            id.kind.unit()
+        );
+        if let Some(t) = truth {
+            let tv = id.kind.to_file_units(t.get(i));
+            let _ = write!(s, " {:>+11.5} {:>6.2}", tv, (v - tv) / sd);
+        }
+        s.push('\n');
+    }
+    s
+}
