@@ -1,0 +1,168 @@
+//! The `rigcal` binary end to end: the demo, observability, identify → compensate, and clear
+//! errors on bad input.
+
+use std::path::Path;
+use std::process::Command;
+
+fn rigcal(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_rigcal"))
+        .args(args)
+        .output()
+        .expect("run rigcal");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+#[test]
+fn observability_prints_rank_15_and_the_papers_basis() {
+    let (ok, out, err) = rigcal(&["observability", "--rig", "rigs/rv-m2.toml"]);
+    assert!(ok, "{err}");
+    assert!(out.contains("rank of [M]: 15 of 35"), "{out}");
+    assert!(
+        out.contains("Δθ0 Δa0 Δα0 Δβ0 Δθ1 Δd1 Δa1 Δα1 Δθ2 Δa2 Δα2 Δβ2 Δθ3 Δd3 Δa3"),
+        "{out}"
+    );
+    assert!(out.contains("Δd0        ≡ -1.0000·Δd1"), "{out}");
+    let (ok, out, _) = rigcal(&["observability", "--rig", "rigs/rv-m2.toml", "--all-joints"]);
+    assert!(ok);
+    assert!(out.contains("rank of [M]: 23 of 35"), "{out}");
+}
+
+#[test]
+fn demo_identifies_and_compensates() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ok, out, err) = rigcal(&["demo", "--out", s(dir.path())]);
+    assert!(ok, "{err}");
+    assert!(dir.path().join("recording/measurements.csv").exists());
+    assert!(dir.path().join("model.json").exists());
+    let rms_after: f64 = out
+        .lines()
+        .find(|l| l.contains("identified model"))
+        .and_then(|l| l.split("RMS").nth(1))
+        .and_then(|r| r.split_whitespace().next())
+        .and_then(|v| v.parse().ok())
+        .unwrap();
+    assert!(rms_after < 0.05, "{out}");
+}
+
+#[test]
+fn identify_then_compensate_from_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ok, _, err) = rigcal(&["demo", "--out", s(dir.path()), "--seed", "3"]);
+    assert!(ok, "{err}");
+    let model = dir.path().join("m.json");
+    let (ok, out, err) = rigcal(&[
+        "identify",
+        "--rig",
+        "rigs/rv-m2-ideal.toml",
+        "--recording",
+        s(&dir.path().join("recording")),
+        "--out",
+        s(&model),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("Δθ0") && out.contains("κ (eq. 4)"), "{out}");
+    let targets = dir.path().join("targets.csv");
+    std::fs::write(&targets, "x_mm,y_mm,z_mm\n0,600,500\n100,550,450\n").unwrap();
+    let cmds = dir.path().join("cmds.csv");
+    let (ok, _, err) = rigcal(&[
+        "compensate",
+        "--model",
+        s(&model),
+        "--targets",
+        s(&targets),
+        "--out",
+        s(&cmds),
+    ]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&cmds).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg");
+    assert_eq!(lines.len(), 3);
+    // The first target lies in the plane x = 0, so the command's q1 is near zero.
+    let q1: f64 = lines[1].split(',').next().unwrap().parse().unwrap();
+    assert!(q1.abs() < 0.5, "{q1}");
+
+    std::fs::write(&targets, "x_mm,y_mm,z_mm\n0,600,500\n0,2000,400\n").unwrap();
+    let (ok, _, err) = rigcal(&[
+        "compensate",
+        "--model",
+        s(&model),
+        "--targets",
+        s(&targets),
+        "--out",
+        s(&cmds),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("targets.csv: line 3") && err.contains("out of reach"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_input_gets_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec.csv");
+    std::fs::write(&rec, "seq,t_s,q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,x_mm,y_mm,z_mm\n1,0,10,20,-30,0,0,1,2,3\n2,1,10,twenty,-30,0,0,1,2,3\n").unwrap();
+    let (ok, _, err) = rigcal(&[
+        "identify",
+        "--rig",
+        "rigs/rv-m2.toml",
+        "--recording",
+        s(&rec),
+        "--out",
+        s(&dir.path().join("m.json")),
+    ]);
+    assert!(!ok);
+    assert!(
+        err.contains("rec.csv: line 3, column 4 (`q2_deg`): `twenty` is not a number"),
+        "{err}"
+    );
+
+    let rig = dir.path().join("bad.toml");
+    std::fs::write(
+        &rig,
+        "name = \"x\"\n[robot]\nbase = {}\ntool = {}\njoints = []\n",
+    )
+    .unwrap();
+    let (ok, _, err) = rigcal(&["observability", "--rig", s(&rig)]);
+    assert!(!ok);
+    assert!(
+        err.contains("bad.toml") && err.contains("robot.joints"),
+        "{err}"
+    );
+
+    let model = dir.path().join("model.json");
+    std::fs::write(&model, "{\"format\": \"something-else\"}").unwrap();
+    let (ok, _, err) = rigcal(&[
+        "compensate",
+        "--model",
+        s(&model),
+        "--targets",
+        s(&rec),
+        "--out",
+        s(&dir.path().join("o.csv")),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("not a rigcal model"), "{err}");
+
+    let (ok, _, err) = rigcal(&[
+        "identify",
+        "--rig",
+        "rigs/nope.toml",
+        "--recording",
+        s(&rec),
+        "--out",
+        "x.json",
+    ]);
+    assert!(!ok);
+    assert!(err.contains("cannot read rig file rigs/nope.toml"), "{err}");
+}

@@ -1,0 +1,130 @@
+//! Every shipped rig file loads; malformed rig files get errors naming the file and the key.
+
+use rigcal::kinematics::Robot;
+use rigcal::rig::{Instrument, Rig};
+use std::path::Path;
+
+#[test]
+fn every_shipped_rig_file_loads() {
+    let mut n = 0;
+    for entry in std::fs::read_dir("rigs").unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) == Some("toml") {
+            let rig = Rig::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert!(rig.chain.dof() >= 1);
+            n += 1;
+        }
+    }
+    assert!(n >= 2);
+}
+
+#[test]
+fn the_two_rv_m2_rigs_differ_only_in_the_instrument() {
+    let real = Rig::load(Path::new("rigs/rv-m2.toml")).unwrap();
+    let ideal = Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
+    assert_eq!(real.chain.links(), ideal.chain.links());
+    assert_eq!(real.chain.joints(), ideal.chain.joints());
+    assert_eq!(real.calibration, ideal.calibration);
+    assert_eq!(ideal.instrument, Instrument::Ideal);
+    let Instrument::TablePanel(t) = &real.instrument else {
+        panic!("table_panel expected")
+    };
+    assert_eq!(t.panel_counts, [512, 256]);
+    assert!((t.min_pin_angle.to_degrees() - 15.0).abs() < 1e-12);
+}
+
+const GOOD: &str = r#"
+name = "two-link"
+[robot]
+base = { theta_deg = 0 }
+tool = { a_mm = 10 }
+[[robot.joints]]
+name = "A"
+type = "revolute"
+a_mm = 100
+limits_deg = [-90, 90]
+[[robot.joints]]
+name = "B"
+type = "prismatic"
+limits_mm = [0, 50]
+"#;
+
+fn err(text: &str) -> String {
+    Rig::parse(text, Some(Path::new("bad.toml")))
+        .unwrap_err()
+        .to_string()
+}
+
+#[test]
+fn a_prismatic_chain_and_a_pose_tool_are_describable() {
+    let rig = Rig::parse(GOOD, None).unwrap();
+    assert_eq!(rig.chain.dof(), 2);
+    let pose = GOOD.replace(
+        "tool = { a_mm = 10 }",
+        "tool = { xyz_mm = [10, 0, 0], rpy_deg = [0, 0, 90] }",
+    );
+    let rig2 = Rig::parse(&pose, None).unwrap();
+    let e = rigcal::kinematics::ErrorParams::zeros(rig2.chain.layout());
+    let p = rig2.chain.position(&[0.0, 20.0], &e);
+    assert!(
+        (p - nalgebra::Vector3::new(110.0, 0.0, 20.0)).norm() < 1e-9,
+        "{p}"
+    );
+}
+
+#[test]
+fn malformed_rig_files_name_file_and_key() {
+    let cases: Vec<(String, &str)> = vec![
+        (
+            GOOD.replace("a_mm = 100", "a_mm = 100\nlength = 3"),
+            "unknown field `length`",
+        ),
+        (
+            GOOD.replace("limits_deg = [-90, 90]", "limits_deg = [90, -90]"),
+            "robot.joints[0].limits_deg",
+        ),
+        (
+            GOOD.replace("limits_mm = [0, 50]", "limits_deg = [0, 50]"),
+            "robot.joints[1].limits_mm",
+        ),
+        (
+            GOOD.replace("type = \"prismatic\"", "type = \"spherical\""),
+            "unknown variant `spherical`",
+        ),
+        (
+            GOOD.replace(
+                "tool = { a_mm = 10 }",
+                "tool = { a_mm = 10, xyz_mm = [0, 0, 0] }",
+            ),
+            "robot.tool",
+        ),
+        (
+            GOOD.replace("name = \"B\"", "name = \"A\""),
+            "robot.joints[1].name",
+        ),
+        (
+            format!("{GOOD}\n[calibration]\nheld_joints = {{ C = 0 }}\n"),
+            "calibration.held_joints.C",
+        ),
+        (
+            format!("{GOOD}\n[calibration]\nbasis_priority = [\"gamma1\"]\n"),
+            "calibration.basis_priority[0]",
+        ),
+        (
+            format!("{GOOD}\n[instrument]\nkind = \"table_panel\"\n"),
+            "instrument.table_travel_mm",
+        ),
+        (
+            GOOD.replace(
+                "tool = { a_mm = 10 }",
+                "tool = { matrix = [[1,0,0,0],[0,2,0,0],[0,0,1,0],[0,0,0,1]] }",
+            ),
+            "not a proper rotation",
+        ),
+    ];
+    for (text, needle) in cases {
+        let e = err(&text);
+        assert!(e.starts_with("rig file bad.toml"), "{e}");
+        assert!(e.contains(needle), "expected `{needle}` in: {e}");
+    }
+}
