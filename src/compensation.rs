@@ -3,9 +3,9 @@
 //!
 //! q^n is the nominal inverse kinematics of the target; then q^c = q^n − dq^c is iterated:
 //! dq^c solves J(q)·dq = P_model(q) − target with J the position Jacobian over the moving
-//! joints at the current error parameters, until the modelled error is below the tolerance
-//! (1 nm by default, well under the 1 µm the method asks for). Error parameters come from an
-//! [`ErrorModel`], so constant, region-wise and learned parameters share one path.
+//! joints, until the modelled error is below the tolerance (1 nm by default, well under the
+//! 1 µm the method asks for). Error parameters come from an [`ErrorModel`] evaluated at the
+//! target's nominal solution, so constant, region-wise and learned parameters share one path.
 //! Units: mm and rad inside.
 
 use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkError, IkOptions, Robot};
@@ -108,11 +108,13 @@ pub fn compensate_from(
         .filter(|&j| held.get(j).copied().flatten().is_none())
         .collect();
     let arr = [target.x, target.y, target.z];
+    // The error parameters are those at the target (the nominal solution), held while iterating,
+    // so a region boundary between q^n and q^c cannot make the iteration oscillate.
+    let e = model.params_at(&nominal);
     let mut q = nominal.clone();
     let mut residual = f64::INFINITY;
     let mut iterations = 0;
     while iterations < opts.max_iterations {
-        let e = model.params_at(&q);
         let err = robot.position(&q, &e) - target;
         residual = err.norm();
         if residual <= opts.tolerance_mm {

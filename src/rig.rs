@@ -61,6 +61,36 @@ pub enum RigError {
     },
 }
 
+/// Why a pose cannot be measured on a rig.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Unmeasurable {
+    /// A joint is outside its limits.
+    #[error("joint {joint} is outside its limits")]
+    JointLimit {
+        /// Joint number (1-based).
+        joint: usize,
+    },
+    /// The pin meets the panel too flat (or from below).
+    #[error("the pin meets the panel at {angle_deg:.1}°, less than the {min_deg:.0}° a contact needs")]
+    PinAngle {
+        /// Angle between pin and panel plane (deg; negative when pointing up).
+        angle_deg: f64,
+        /// The rig's minimum (deg).
+        min_deg: f64,
+    },
+    /// The table cannot bring the panel there.
+    #[error("table {axis} would need {position_mm:.1} mm, outside its travel 0..{travel_mm:.0} mm")]
+    TableTravel {
+        /// Axis.
+        axis: char,
+        /// Needed position (mm).
+        position_mm: f64,
+        /// Travel (mm).
+        travel_mm: f64,
+    },
+}
+
 /// Whether a measurement frame (or marker) is known and held, or fitted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -139,6 +169,9 @@ pub struct Rig {
     pub calibration: CalibrationSettings,
     /// What measures it.
     pub instrument: Instrument,
+    /// Workspace bounds for division in spherical coordinates (R mm, azimuth rad, elevation rad),
+    /// when the rig file states them.
+    pub spherical_bounds: Option<[[f64; 2]; 3]>,
     /// The file it came from.
     pub source: RigSource,
 }
@@ -154,6 +187,16 @@ struct RawRig {
     calibration: RawCalibration,
     #[serde(default)]
     instrument: RawInstrument,
+    #[serde(default)]
+    workspace: RawWorkspace,
+}
+
+#[derive(Debug, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RawWorkspace {
+    r_mm: Option<[f64; 2]>,
+    azimuth_deg: Option<[f64; 2]>,
+    elevation_deg: Option<[f64; 2]>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -270,6 +313,42 @@ impl Rig {
         &self.calibration.held
     }
 
+    /// Whether the instrument can measure the arm at joint values `q` with the nominal
+    /// kinematics: within the joint limits, and for the table-and-panel rig, within the table's
+    /// travel and with the pin at least the minimum angle to the panel plane.
+    pub fn measurable(&self, q: &[f64]) -> Result<(), Unmeasurable> {
+        use crate::kinematics::{ErrorParams, Robot};
+        for (j, (spec, v)) in self.chain.joints().iter().zip(q).enumerate() {
+            if !spec.within(*v) {
+                return Err(Unmeasurable::JointLimit { joint: j + 1 });
+            }
+        }
+        let Instrument::TablePanel(t) = &self.instrument else {
+            return Ok(());
+        };
+        let e = ErrorParams::zeros(self.chain.layout());
+        let pose = self.chain.tool_pose(q, &e);
+        let pin = pose.rotation * t.pin_axis;
+        if pin.z > -t.min_pin_angle.sin() {
+            return Err(Unmeasurable::PinAngle {
+                angle_deg: (-pin.z).clamp(-1.0, 1.0).asin().to_degrees(),
+                min_deg: t.min_pin_angle.to_degrees(),
+            });
+        }
+        let tip = self.chain.position(q, &e);
+        let table = tip - t.table_to_world_mm;
+        for k in 0..3 {
+            if table[k] < 0.0 || table[k] > t.travel_mm[k] {
+                return Err(Unmeasurable::TableTravel {
+                    axis: ['x', 'y', 'z'][k],
+                    position_mm: table[k],
+                    travel_mm: t.travel_mm[k],
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// The joints that move during calibration (0-based).
     pub fn moving_joints(&self) -> Vec<usize> {
         (0..self.calibration.held.len())
@@ -333,6 +412,7 @@ impl Validator {
         let chain = SerialChain::new(joints, base, links, tool, Isometry3::identity(), marker);
         let calibration = self.calibration(&raw.calibration, &chain)?;
         let instrument = self.instrument(&raw.instrument)?;
+        let spherical_bounds = self.workspace(&raw.workspace)?;
         Ok(Rig {
             name: raw.name,
             description: raw.description,
@@ -340,6 +420,7 @@ impl Validator {
             chain,
             calibration,
             instrument,
+            spherical_bounds,
             source: RigSource {
                 path: None,
                 text: String::new(),
@@ -503,6 +584,24 @@ impl Validator {
             measurement_frame: c.measurement_frame,
             marker: c.marker,
         })
+    }
+
+    fn workspace(&self, w: &RawWorkspace) -> Result<Option<[[f64; 2]; 3]>, RigError> {
+        match (w.r_mm, w.azimuth_deg, w.elevation_deg) {
+            (None, None, None) => Ok(None),
+            (Some(r), Some(a), Some(e)) => {
+                for (key, v) in [("workspace.r_mm", r), ("workspace.azimuth_deg", a), ("workspace.elevation_deg", e)] {
+                    if !(v[0].is_finite() && v[1].is_finite() && v[0] < v[1]) {
+                        return Err(self.invalid(key, "needs finite [min, max] with min < max"));
+                    }
+                }
+                if r[0] < 0.0 {
+                    return Err(self.invalid("workspace.r_mm", "must not be negative"));
+                }
+                Ok(Some([r, [a[0].to_radians(), a[1].to_radians()], [e[0].to_radians(), e[1].to_radians()]]))
+            }
+            _ => Err(self.invalid("workspace", "give all of r_mm, azimuth_deg and elevation_deg, or none")),
+        }
     }
 
     fn instrument(&self, i: &RawInstrument) -> Result<Instrument, RigError> {
