@@ -1,2 +1,3 @@
 //! rigcal: robot calibration.
-pub mod kinematics;
+pub mod protocols;
+pub mod transports;
