@@ -100,7 +100,9 @@ pub enum CanOpenError {
         sub: u8,
     },
     /// An SDO command specifier this codec does not handle (segment, block, reserved).
-    #[error("unsupported SDO command byte {command:#04x} (only expedited initiate/abort are supported)")]
+    #[error(
+        "unsupported SDO command byte {command:#04x} (only expedited initiate/abort are supported)"
+    )]
     UnsupportedCommandSpecifier {
         /// The command byte.
         command: u8,
@@ -389,31 +391,119 @@ pub enum SdoAbortCode {
 
 impl SdoAbortCode {
     const TABLE: [(SdoAbortCode, u32, &'static str); 25] = [
-        (SdoAbortCode::ToggleBitNotAlternated, 0x0503_0000, "toggle bit not alternated"),
+        (
+            SdoAbortCode::ToggleBitNotAlternated,
+            0x0503_0000,
+            "toggle bit not alternated",
+        ),
         (SdoAbortCode::Timeout, 0x0504_0000, "SDO protocol timed out"),
-        (SdoAbortCode::InvalidCommandSpecifier, 0x0504_0001, "command specifier not valid or unknown"),
+        (
+            SdoAbortCode::InvalidCommandSpecifier,
+            0x0504_0001,
+            "command specifier not valid or unknown",
+        ),
         (SdoAbortCode::OutOfMemory, 0x0504_0005, "out of memory"),
-        (SdoAbortCode::UnsupportedAccess, 0x0601_0000, "unsupported access to an object"),
-        (SdoAbortCode::WriteOnly, 0x0601_0001, "attempt to read a write-only object"),
-        (SdoAbortCode::ReadOnly, 0x0601_0002, "attempt to write a read-only object"),
-        (SdoAbortCode::ObjectDoesNotExist, 0x0602_0000, "object does not exist in the object dictionary"),
-        (SdoAbortCode::CannotBeMapped, 0x0604_0041, "object cannot be mapped to the PDO"),
-        (SdoAbortCode::PdoLengthExceeded, 0x0604_0042, "mapped objects would exceed the PDO length"),
-        (SdoAbortCode::ParameterIncompatible, 0x0604_0043, "general parameter incompatibility"),
-        (SdoAbortCode::InternalIncompatible, 0x0604_0047, "general internal incompatibility in the device"),
-        (SdoAbortCode::HardwareError, 0x0606_0000, "access failed due to a hardware error"),
-        (SdoAbortCode::LengthMismatch, 0x0607_0010, "data type does not match, length of service parameter does not match"),
-        (SdoAbortCode::LengthTooHigh, 0x0607_0012, "data type does not match, length of service parameter too high"),
-        (SdoAbortCode::LengthTooLow, 0x0607_0013, "data type does not match, length of service parameter too low"),
-        (SdoAbortCode::SubIndexDoesNotExist, 0x0609_0011, "sub-index does not exist"),
-        (SdoAbortCode::ValueRangeExceeded, 0x0609_0030, "value range of parameter exceeded"),
-        (SdoAbortCode::ValueTooHigh, 0x0609_0031, "value of parameter written too high"),
-        (SdoAbortCode::ValueTooLow, 0x0609_0032, "value of parameter written too low"),
+        (
+            SdoAbortCode::UnsupportedAccess,
+            0x0601_0000,
+            "unsupported access to an object",
+        ),
+        (
+            SdoAbortCode::WriteOnly,
+            0x0601_0001,
+            "attempt to read a write-only object",
+        ),
+        (
+            SdoAbortCode::ReadOnly,
+            0x0601_0002,
+            "attempt to write a read-only object",
+        ),
+        (
+            SdoAbortCode::ObjectDoesNotExist,
+            0x0602_0000,
+            "object does not exist in the object dictionary",
+        ),
+        (
+            SdoAbortCode::CannotBeMapped,
+            0x0604_0041,
+            "object cannot be mapped to the PDO",
+        ),
+        (
+            SdoAbortCode::PdoLengthExceeded,
+            0x0604_0042,
+            "mapped objects would exceed the PDO length",
+        ),
+        (
+            SdoAbortCode::ParameterIncompatible,
+            0x0604_0043,
+            "general parameter incompatibility",
+        ),
+        (
+            SdoAbortCode::InternalIncompatible,
+            0x0604_0047,
+            "general internal incompatibility in the device",
+        ),
+        (
+            SdoAbortCode::HardwareError,
+            0x0606_0000,
+            "access failed due to a hardware error",
+        ),
+        (
+            SdoAbortCode::LengthMismatch,
+            0x0607_0010,
+            "data type does not match, length of service parameter does not match",
+        ),
+        (
+            SdoAbortCode::LengthTooHigh,
+            0x0607_0012,
+            "data type does not match, length of service parameter too high",
+        ),
+        (
+            SdoAbortCode::LengthTooLow,
+            0x0607_0013,
+            "data type does not match, length of service parameter too low",
+        ),
+        (
+            SdoAbortCode::SubIndexDoesNotExist,
+            0x0609_0011,
+            "sub-index does not exist",
+        ),
+        (
+            SdoAbortCode::ValueRangeExceeded,
+            0x0609_0030,
+            "value range of parameter exceeded",
+        ),
+        (
+            SdoAbortCode::ValueTooHigh,
+            0x0609_0031,
+            "value of parameter written too high",
+        ),
+        (
+            SdoAbortCode::ValueTooLow,
+            0x0609_0032,
+            "value of parameter written too low",
+        ),
         (SdoAbortCode::GeneralError, 0x0800_0000, "general error"),
-        (SdoAbortCode::DataCannotBeStored, 0x0800_0020, "data cannot be transferred or stored to the application"),
-        (SdoAbortCode::DataCannotBeStoredLocalControl, 0x0800_0021, "data cannot be transferred or stored because of local control"),
-        (SdoAbortCode::DataCannotBeStoredDeviceState, 0x0800_0022, "data cannot be transferred or stored because of the present device state"),
-        (SdoAbortCode::NoObjectDictionary, 0x0800_0023, "object dictionary dynamic generation fails or no object dictionary is present"),
+        (
+            SdoAbortCode::DataCannotBeStored,
+            0x0800_0020,
+            "data cannot be transferred or stored to the application",
+        ),
+        (
+            SdoAbortCode::DataCannotBeStoredLocalControl,
+            0x0800_0021,
+            "data cannot be transferred or stored because of local control",
+        ),
+        (
+            SdoAbortCode::DataCannotBeStoredDeviceState,
+            0x0800_0022,
+            "data cannot be transferred or stored because of the present device state",
+        ),
+        (
+            SdoAbortCode::NoObjectDictionary,
+            0x0800_0023,
+            "object dictionary dynamic generation fails or no object dictionary is present",
+        ),
     ];
 
     /// The 32-bit abort code.
@@ -632,7 +722,11 @@ fn expedited_data(cmd: u8, index: u16, sub: u8, d: [u8; 4]) -> Result<SdoData, C
         return Err(CanOpenError::SegmentedNotSupported { index, sub });
     }
     // Size not indicated (s = 0): all four bytes are taken (CiA 301 leaves the size unspecified).
-    let len = if s { 4 - usize::from((cmd >> 2) & 0x03) } else { 4 };
+    let len = if s {
+        4 - usize::from((cmd >> 2) & 0x03)
+    } else {
+        4
+    };
     SdoData::new(d.get(..len).unwrap_or(&d))
 }
 

@@ -75,7 +75,9 @@ pub enum MovemasterError {
     #[error("reply line is not terminated by CR; read until the CR arrives before decoding")]
     MissingTerminator,
     /// The mnemonic is not one of the supported commands.
-    #[error("unknown or unsupported Movemaster command {mnemonic:?}; supported: NT SP MJ DJ WH ER RS")]
+    #[error(
+        "unknown or unsupported Movemaster command {mnemonic:?}; supported: NT SP MJ DJ WH ER RS"
+    )]
     UnknownCommand {
         /// The first two characters of the line (or the whole line if shorter).
         mnemonic: String,
@@ -91,7 +93,9 @@ pub enum MovemasterError {
         found: usize,
     },
     /// A field was not a number of the accepted form.
-    #[error("field {field} of {what} is not a valid number: {text:?} (expected [+|-]digits[.digits])")]
+    #[error(
+        "field {field} of {what} is not a valid number: {text:?} (expected [+|-]digits[.digits])"
+    )]
     BadNumber {
         /// What was being decoded.
         what: &'static str,
@@ -127,7 +131,9 @@ pub enum MovemasterError {
         value: String,
     },
     /// A line exceeded the framer's maximum length; bytes are discarded up to the next CR.
-    #[error("line longer than {max} bytes; discarding up to the next CR (noise or wrong baud rate?)")]
+    #[error(
+        "line longer than {max} bytes; discarding up to the next CR (noise or wrong baud rate?)"
+    )]
     LineTooLong {
         /// The configured maximum.
         max: usize,
@@ -753,7 +759,11 @@ pub fn quantise_joint_move(
 ) -> Result<(Command, [i64; 5]), MovemasterError> {
     let mut angles = [Decimal::zero(resolution); 5];
     let mut commanded = *commanded_abs_counts;
-    for ((angle, cmd), target) in angles.iter_mut().zip(commanded.iter_mut()).zip(targets_abs_deg) {
+    for ((angle, cmd), target) in angles
+        .iter_mut()
+        .zip(commanded.iter_mut())
+        .zip(targets_abs_deg)
+    {
         let step = quantise_increment(*target, *cmd, resolution)?;
         *angle = step.increment;
         *cmd = step.commanded_counts;
@@ -893,9 +903,7 @@ fn parse_small_uint(text: &[u8], what: &'static str, field: usize) -> Result<u8,
     if t.is_empty() || t.len() > 3 || !t.iter().all(u8::is_ascii_digit) {
         return Err(bad());
     }
-    let v = t
-        .iter()
-        .fold(0u16, |acc, d| acc * 10 + u16::from(d - b'0'));
+    let v = t.iter().fold(0u16, |acc, d| acc * 10 + u16::from(d - b'0'));
     u8::try_from(v).map_err(|_| MovemasterError::OutOfRange {
         what,
         value: v.to_string(),
