@@ -132,7 +132,9 @@ impl CanFrame {
             return Err(CanFrameError::TooManyBytes { len: data.len() });
         }
         let mut buf = [0u8; MAX_DATA_LEN];
-        buf[..data.len()].copy_from_slice(data);
+        for (slot, b) in buf.iter_mut().zip(data) {
+            *slot = *b;
+        }
         Ok(CanFrame {
             id,
             data: buf,
@@ -171,7 +173,9 @@ impl CanFrame {
     pub(crate) fn standard_masked(id: u16, data: &[u8]) -> CanFrame {
         let len = data.len().min(MAX_DATA_LEN);
         let mut buf = [0u8; MAX_DATA_LEN];
-        buf[..len].copy_from_slice(&data[..len]);
+        for (slot, b) in buf.iter_mut().zip(data) {
+            *slot = *b;
+        }
         CanFrame {
             id: CanId::Standard(id & MAX_STANDARD_ID),
             data: buf,

@@ -554,7 +554,9 @@ impl SdoData {
             return Err(CanOpenError::BadSdoDataLength { len: bytes.len() });
         }
         let mut b = [0u8; 4];
-        b[..bytes.len()].copy_from_slice(bytes);
+        for (slot, v) in b.iter_mut().zip(bytes) {
+            *slot = *v;
+        }
         Ok(SdoData {
             bytes: b,
             len: bytes.len() as u8,

@@ -333,7 +333,10 @@ impl Decimal {
             _ => (false, t),
         };
         let (int_part, frac_part) = match rest.iter().position(|&b| b == b'.') {
-            Some(p) => (&rest[..p], &rest[p + 1..]),
+            Some(p) => (
+                rest.get(..p).unwrap_or_default(),
+                rest.get(p + 1..).unwrap_or_default(),
+            ),
             None => (rest, &[][..]),
         };
         if int_part.is_empty() && frac_part.is_empty() {
@@ -522,16 +525,19 @@ impl Command {
             b"RS" => no_args(Command::Reset, "RS"),
             b"SP" => {
                 let fields = split_fields(args);
-                if fields.is_empty() || fields.len() > 2 {
-                    return Err(MovemasterError::WrongFieldCount {
-                        what: "SP",
-                        expected: 1,
-                        found: fields.len(),
-                    });
-                }
-                let level = parse_small_uint(fields[0], "SP", 0)?;
-                let level = SpeedLevel::new(level)?;
-                let accel = match fields.get(1).map(|f| trim_spaces(f)) {
+                let (level, accel) = match fields.as_slice() {
+                    [level] => (level, None),
+                    [level, accel] => (level, Some(trim_spaces(accel))),
+                    _ => {
+                        return Err(MovemasterError::WrongFieldCount {
+                            what: "SP",
+                            expected: 1,
+                            found: fields.len(),
+                        })
+                    }
+                };
+                let level = SpeedLevel::new(parse_small_uint(level, "SP", 0)?)?;
+                let accel = match accel {
                     None => None,
                     Some(b"H") => Some(Acceleration::High),
                     Some(b"L") => Some(Acceleration::Low),
@@ -562,15 +568,15 @@ impl Command {
             }
             b"DJ" => {
                 let fields = split_fields(args);
-                if fields.len() != 2 {
+                let [joint, angle] = fields.as_slice() else {
                     return Err(MovemasterError::WrongFieldCount {
                         what: "DJ",
                         expected: 2,
                         found: fields.len(),
                     });
-                }
-                let joint = JointNumber::new(parse_small_uint(fields[0], "DJ", 0)?)?;
-                let angle = Decimal::parse(fields[1], "DJ", 1)?;
+                };
+                let joint = JointNumber::new(parse_small_uint(joint, "DJ", 0)?)?;
+                let angle = Decimal::parse(angle, "DJ", 1)?;
                 Ok(Command::MoveJoint { joint, angle })
             }
             other => Err(MovemasterError::UnknownCommand {
