@@ -387,6 +387,28 @@ fn slcan_bus_ack_timeout() {
     }
 }
 
+#[test]
+fn traits_are_object_safe_and_boxed_transports_work() {
+    // SlcanBus over a boxed, type-erased byte transport, used as a boxed CanBus.
+    let (adapter_end, host_end) = PipeTransport::pair();
+    let stop = Arc::new(AtomicBool::new(false));
+    let stop2 = Arc::clone(&stop);
+    let script = Script {
+        reject_bitrate: false,
+        reject_frames: false,
+    };
+    let adapter = thread::spawn(move || run_adapter(adapter_end, script, stop2));
+    let io: Box<dyn ByteTransport> = Box::new(host_end);
+    let mut bus: Box<dyn CanBus> = Box::new(SlcanBus::open(io, SlcanBusConfig::default()).unwrap());
+    let f = CanFrame::new_standard(0x701, &[0x05]).unwrap();
+    bus.send(&f).unwrap();
+    assert_eq!(bus.recv(Duration::from_millis(500)).unwrap(), f);
+    stop.store(true, Ordering::SeqCst);
+    adapter.join().unwrap();
+    let sim: Box<dyn CanBus> = Box::new(SimBus::new().endpoint());
+    drop(sim);
+}
+
 // ============================================================== SocketCAN
 
 #[cfg(target_os = "linux")]

@@ -603,7 +603,8 @@ pub struct WhereReply {
 
 impl WhereReply {
     /// Encodes as the controller does: five signed values with one decimal,
-    /// e.g. `+250.0,+0.0,+400.0,-90.0,+0.0\r`. Non-finite values are written as `+0.0`.
+    /// e.g. `+250.0,+0.0,+400.0,-90.0,+0.0\r`. Values are rounded to 0.1;
+    /// non-finite values and magnitudes above 99 999 999.9 are written as `+0.0`.
     pub fn encode(&self) -> Vec<u8> {
         let res = Resolution::default();
         let mut out = Vec::with_capacity(48);
