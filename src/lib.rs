@@ -12,11 +12,15 @@
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
 //! | [`model`] | the versioned model file |
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
+//! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
+//! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
 pub mod cli;
 pub mod compensation;
 pub mod identification;
 pub mod kinematics;
 pub mod model;
+pub mod protocols;
 pub mod recording;
 pub mod rig;
+pub mod transports;
 pub mod world;
