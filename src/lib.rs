@@ -16,8 +16,10 @@
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
 pub mod cli;
 pub mod compensation;
+pub mod division;
 pub mod identification;
 pub mod kinematics;
+pub mod learners;
 pub mod model;
 pub mod protocols;
 pub mod recording;

@@ -9,8 +9,10 @@
 //!              "fit": { … } } }
 //! ```
 
+use crate::division::{DivisionSpace, RegionModel, RegionTree};
 use crate::identification::{FitResult, ResidualStats};
 use crate::kinematics::{ErrorModel, ErrorParams, Robot};
+use crate::learners::{LearnedModel, Learner};
 use crate::rig::{Rig, RigError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -128,6 +130,41 @@ pub enum ModelBody {
         /// How the fit went.
         fit: FitSummary,
     },
+    /// The variable D-H parameter model: CEPs per region of a recursive division, optionally
+    /// generalised by a learner; with the conventional fit on the same measurements for
+    /// comparison.
+    Variable {
+        /// Conventional calibration on the same measurements.
+        conventional: Vec<ParamEntry>,
+        /// How the conventional fit went.
+        fit: FitSummary,
+        /// How the division was made.
+        division: DivisionSummary,
+        /// The region tree (CEPs in internal units: mm, rad).
+        tree: RegionTree,
+        /// The learner, when one was trained (outputs in mm and degrees).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        learner: Option<Learner>,
+    },
+}
+
+/// How a division was made.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct DivisionSummary {
+    /// Demanded accuracy (mm).
+    pub accuracy_mm: f64,
+    /// Region cap.
+    pub max_regions: usize,
+    /// Measurements per region asked for.
+    pub per_region: usize,
+    /// Regions (leaves) made.
+    pub regions: usize,
+    /// Identification measurements used.
+    pub measurements: usize,
+    /// Test measurements made (planning mode).
+    pub test_measurements: usize,
+    /// `planning` or `offline`.
+    pub mode: String,
 }
 
 /// A model file.
@@ -160,21 +197,18 @@ pub struct LoadedModel {
 impl ModelFile {
     /// A constant-parameter model from a fit.
     pub fn constant(rig: &Rig, fit: &FitResult, provenance: Provenance) -> Self {
-        let layout = rig.chain.layout();
-        let parameters = fit
-            .free
-            .iter()
-            .zip(&fit.sigma)
-            .map(|(&i, &s)| {
-                let id = layout.ids()[i];
-                ParamEntry {
-                    name: layout.name(id),
-                    value: id.kind.to_file_units(fit.params.get(i)),
-                    unit: id.kind.unit().to_string(),
-                    sigma: Some(id.kind.to_file_units(s)),
-                }
-            })
-            .collect();
+        Self::new(
+            rig,
+            provenance,
+            ModelBody::Constant {
+                parameters: entries(rig, fit),
+                fit: summary(fit),
+            },
+        )
+    }
+
+    /// A model file around a body.
+    pub fn new(rig: &Rig, provenance: Provenance, model: ModelBody) -> Self {
         Self {
             format: MODEL_FORMAT.into(),
             version: MODEL_VERSION,
@@ -185,16 +219,7 @@ impl ModelFile {
                 toml: rig.source.text.clone(),
             },
             fitted_from: provenance,
-            model: ModelBody::Constant {
-                parameters,
-                fit: FitSummary {
-                    kappa_eq4: fit.kappa,
-                    before: fit.before,
-                    after: fit.after,
-                    sigma0_mm: fit.sigma0_mm,
-                    iterations: fit.iterations,
-                },
-            },
+            model,
         }
     }
 
@@ -249,11 +274,119 @@ impl ModelFile {
     }
 
     fn error_model(&self, rig: &Rig, path: &Path) -> Result<Box<dyn ErrorModel>, ModelError> {
+        let mut all = self.error_models(rig, path)?;
+        Ok(all.remove(0).1)
+    }
+
+    /// Every error model the file holds, the one compensation uses first: for a variable model
+    /// the learner (if any), then the regions, then the conventional parameters.
+    pub fn error_models(
+        &self,
+        rig: &Rig,
+        path: &Path,
+    ) -> Result<Vec<(String, Box<dyn ErrorModel>)>, ModelError> {
         match &self.model {
-            ModelBody::Constant { parameters, .. } => {
-                Ok(Box::new(params_from_entries(rig, parameters, path)?))
+            ModelBody::Constant { parameters, .. } => Ok(vec![(
+                "conventional".into(),
+                Box::new(params_from_entries(rig, parameters, path)?),
+            )]),
+            ModelBody::Variable {
+                conventional,
+                tree,
+                learner,
+                ..
+            } => {
+                let bad = |reason: String| ModelError::Format {
+                    path: path.to_path_buf(),
+                    reason,
+                };
+                let layout = rig.chain.layout();
+                let basis = tree
+                    .basis
+                    .iter()
+                    .map(|n| {
+                        layout
+                            .find(n)
+                            .and_then(|id| layout.index_of(id))
+                            .ok_or_else(|| {
+                                bad(format!("CEP `{n}` does not exist in rig `{}`", rig.name))
+                            })
+                    })
+                    .collect::<Result<Vec<_>, _>>()?;
+                let space = DivisionSpace::new(rig, tree.space).map_err(|e| bad(e.to_string()))?;
+                let mut out: Vec<(String, Box<dyn ErrorModel>)> = Vec::new();
+                if let Some(l) = learner {
+                    let name = match l {
+                        Learner::Fcmac(_) => "fcmac",
+                        Learner::Cmac(_) => "cmac",
+                    };
+                    let scale = cep_scale(rig, &basis);
+                    out.push((
+                        name.into(),
+                        Box::new(LearnedModel::new(
+                            l.clone(),
+                            space.clone(),
+                            basis.clone(),
+                            scale,
+                            layout.len(),
+                        )),
+                    ));
+                }
+                out.push((
+                    "regions".into(),
+                    Box::new(RegionModel::new(tree.clone(), space, basis, layout.len())),
+                ));
+                out.push((
+                    "conventional".into(),
+                    Box::new(params_from_entries(rig, conventional, path)?),
+                ));
+                Ok(out)
             }
         }
+    }
+}
+
+/// Factors from internal units to file units for CEPs (180/π for angles, 1 for lengths).
+pub fn cep_scale(rig: &Rig, basis: &[usize]) -> Vec<f64> {
+    let layout = rig.chain.layout();
+    basis
+        .iter()
+        .map(|&i| {
+            if layout.ids()[i].kind.is_angle() {
+                180.0 / std::f64::consts::PI
+            } else {
+                1.0
+            }
+        })
+        .collect()
+}
+
+/// Parameter entries (file units, with σ) of a fit.
+pub fn entries(rig: &Rig, fit: &FitResult) -> Vec<ParamEntry> {
+    let layout = rig.chain.layout();
+    fit.free
+        .iter()
+        .zip(&fit.sigma)
+        .map(|(&i, &s)| {
+            let id = layout.ids()[i];
+            ParamEntry {
+                name: layout.name(id),
+                value: id.kind.to_file_units(fit.params.get(i)),
+                unit: id.kind.unit().to_string(),
+                sigma: Some(id.kind.to_file_units(s)),
+            }
+        })
+        .collect()
+}
+
+/// The summary of a fit for a model file.
+pub fn summary(fit: &FitResult) -> FitSummary {
+    FitSummary {
+        kappa_eq4: fit.kappa,
+        before: fit.before,
+        after: fit.after,
+        sigma0_mm: fit.sigma0_mm,
+        iterations: fit.iterations,
     }
 }
 

@@ -155,3 +155,16 @@ pub(crate) fn fig6_path(n: usize) -> Vec<Vec<f64>> {
         })
         .collect()
 }
+
+/// The simulated world as a division's measurer: each call is the next measurement.
+pub(crate) struct WorldMeasurer {
+    pub world: World,
+    pub seq: u64,
+}
+
+impl crate::division::Measurer for WorldMeasurer {
+    fn measure(&mut self, q: &[f64]) -> Option<Vector3<f64>> {
+        self.seq += 1;
+        Some(self.world.measure(q, self.seq, 0))
+    }
+}

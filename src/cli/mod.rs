@@ -1,5 +1,6 @@
 //! The command line: one module per subcommand (clap derive). The only place that uses `anyhow`.
 
+mod calibrate;
 mod compensate;
 mod demo;
 mod identify;
@@ -36,6 +37,9 @@ enum Command {
     Register(register::Args),
     /// Joint commands that bring the calibrated arm to target positions.
     Compensate(compensate::Args),
+    /// The variable D-H parameter model: recursive workspace division, CEPs per region and an
+    /// FCMAC (or CMAC) that generalises them.
+    Calibrate(calibrate::Args),
 }
 
 /// Runs the command line and returns the process exit code.
@@ -48,6 +52,7 @@ pub fn main() -> ExitCode {
         Command::Identify(a) => identify::run(a),
         Command::Register(a) => register::run(a),
         Command::Compensate(a) => compensate::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

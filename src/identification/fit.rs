@@ -25,6 +25,8 @@ pub struct FitOptions {
     pub max_iterations: usize,
     /// Stop when the scaled step norm falls below this.
     pub step_tolerance: f64,
+    /// A weak prior pulling each fitted parameter towards a value.
+    pub prior: Option<Prior>,
 }
 
 impl Default for FitOptions {
@@ -32,8 +34,20 @@ impl Default for FitOptions {
         Self {
             max_iterations: 100,
             step_tolerance: 1e-10,
+            prior: None,
         }
     }
+}
+
+/// A Gaussian prior on the fitted parameters, added as extra residual rows
+/// `weight_i · (mean_i − x_i)` (mm). With `weight_i = σ_noise / σ_prior,i` this is the maximum
+/// a-posteriori estimate; directions the data determine are hardly affected.
+#[derive(Debug, Clone)]
+pub struct Prior {
+    /// Prior means, all parameters (internal units).
+    pub mean: ErrorParams,
+    /// Row weight per fitted parameter, in `free` order (mm per internal unit).
+    pub weight: Vec<f64>,
 }
 
 /// Why a fit failed.
@@ -144,8 +158,9 @@ pub fn fit(
         });
     }
     let mut e = start.clone();
-    let (mut r, mut j) = residual_and_jacobian(robot, obs, &e, free);
-    let before = stats_of(&r);
+    let prior = opts.prior.as_ref();
+    let (mut r, mut j) = residual_and_jacobian(robot, obs, &e, free, prior);
+    let before = ResidualStats::of(&errors(robot, obs, &e));
     let mut cost = r.norm_squared();
     let mut lambda = 1e-4;
     let mut iterations = 0;
@@ -172,7 +187,7 @@ pub fn fit(
             for (k, &i) in free.iter().enumerate() {
                 trial.set(i, trial.get(i) + ds[k] / d[k]);
             }
-            let r_trial = residual(robot, obs, &trial);
+            let r_trial = residual(robot, obs, &trial, free, prior);
             let c_trial = r_trial.norm_squared();
             if c_trial <= cost {
                 e = trial;
@@ -186,12 +201,13 @@ pub fn fit(
         if !improved || step_norm < opts.step_tolerance {
             break;
         }
-        let rj = residual_and_jacobian(robot, obs, &e, free);
+        let rj = residual_and_jacobian(robot, obs, &e, free, prior);
         r = rj.0;
         j = rj.1;
     }
-    let (r, j) = residual_and_jacobian(robot, obs, &e, free);
-    let kappa = kappa_eq4(&j);
+    let (r, j) = residual_and_jacobian(robot, obs, &e, free, prior);
+    let data_rows = 3 * obs.len();
+    let kappa = kappa_eq4(&j.rows(0, data_rows).clone_owned());
     let jtj = j.transpose() * &j;
     let Some(inv) = jtj
         .clone()
@@ -201,10 +217,10 @@ pub fn fit(
         return Err(FitError::Singular { kappa });
     };
     let dof = (rows - p).max(1) as f64;
-    let s2 = r.norm_squared() / dof;
+    let s2 = r.rows(0, data_rows).norm_squared() / dof;
     let covariance = inv * s2;
     let sigma = (0..p).map(|k| covariance[(k, k)].max(0.0).sqrt()).collect();
-    let residuals = to_vectors(&r);
+    let residuals = to_vectors(&r.rows(0, data_rows).clone_owned());
     Ok(FitResult {
         params: e,
         free: free.to_vec(),
@@ -224,12 +240,43 @@ pub fn errors(robot: &dyn Robot, obs: &[Observation], e: &ErrorParams) -> Vec<Ve
     obs.iter().map(|o| o.p - robot.position(&o.q, e)).collect()
 }
 
-fn residual(robot: &dyn Robot, obs: &[Observation], e: &ErrorParams) -> DVector<f64> {
-    let mut r = DVector::zeros(3 * obs.len());
+fn prior_rows(prior: Option<&Prior>, free: &[usize]) -> usize {
+    prior.map_or(0, |_| free.len())
+}
+
+fn fill_prior(
+    r: &mut DVector<f64>,
+    j: Option<&mut DMatrix<f64>>,
+    prior: Option<&Prior>,
+    e: &ErrorParams,
+    free: &[usize],
+    start: usize,
+) {
+    let Some(prior) = prior else { return };
+    for (k, &i) in free.iter().enumerate() {
+        let w = prior.weight.get(k).copied().unwrap_or(0.0);
+        r[start + k] = w * (prior.mean.get(i) - e.get(i));
+    }
+    if let Some(j) = j {
+        for k in 0..free.len() {
+            j[(start + k, k)] = prior.weight.get(k).copied().unwrap_or(0.0);
+        }
+    }
+}
+
+fn residual(
+    robot: &dyn Robot,
+    obs: &[Observation],
+    e: &ErrorParams,
+    free: &[usize],
+    prior: Option<&Prior>,
+) -> DVector<f64> {
+    let mut r = DVector::zeros(3 * obs.len() + prior_rows(prior, free));
     for (k, o) in obs.iter().enumerate() {
         let d = o.p - robot.position(&o.q, e);
         r.fixed_rows_mut::<3>(3 * k).copy_from(&d);
     }
+    fill_prior(&mut r, None, prior, e, free, 3 * obs.len());
     r
 }
 
@@ -238,9 +285,11 @@ fn residual_and_jacobian(
     obs: &[Observation],
     e: &ErrorParams,
     free: &[usize],
+    prior: Option<&Prior>,
 ) -> (DVector<f64>, DMatrix<f64>) {
-    let mut r = DVector::zeros(3 * obs.len());
-    let mut j = DMatrix::zeros(3 * obs.len(), free.len());
+    let extra = prior_rows(prior, free);
+    let mut r = DVector::zeros(3 * obs.len() + extra);
+    let mut j = DMatrix::zeros(3 * obs.len() + extra, free.len());
     for (k, o) in obs.iter().enumerate() {
         let (p, m) = robot.position_and_param_jacobian(&o.q, e);
         r.fixed_rows_mut::<3>(3 * k).copy_from(&(o.p - p));
@@ -250,6 +299,7 @@ fn residual_and_jacobian(
             }
         }
     }
+    fill_prior(&mut r, Some(&mut j), prior, e, free, 3 * obs.len());
     (r, j)
 }
 
@@ -265,8 +315,4 @@ fn to_vectors(r: &DVector<f64>) -> Vec<Vector3<f64>> {
     (0..r.len() / 3)
         .map(|k| Vector3::new(r[3 * k], r[3 * k + 1], r[3 * k + 2]))
         .collect()
-}
-
-fn stats_of(r: &DVector<f64>) -> ResidualStats {
-    ResidualStats::of(&to_vectors(r))
 }

@@ -15,7 +15,7 @@ pub mod fit;
 pub mod identifiability;
 pub mod registration;
 
-pub use fit::{fit, FitError, FitOptions, FitResult, Observation, ResidualStats};
+pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};
 pub use identifiability::{analyse, candidate_order, Identifiability};
 pub use registration::{register, Registration};
 

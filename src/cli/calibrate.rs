@@ -1,0 +1,268 @@
+//! `rigcal calibrate`: the variable D-H parameter model — recursive division, per-region CEPs and
+//! a learner — from a recording (offline) or a simulated world that measures what the division
+//! asks for (planning).
+
+use crate::division::{divide, DivisionOptions, DivisionReport, Mode, Space};
+use crate::identification::{analyse, candidate_order, random_poses};
+use crate::learners::{self, LearnerKind};
+use crate::model::{
+    cep_scale, entries, summary, DivisionSummary, ModelBody, ModelFile, Provenance,
+};
+use crate::recording::Recording;
+use crate::rig::Rig;
+use anyhow::{bail, Result};
+use indicatif::{ProgressBar, ProgressStyle};
+use rand::SeedableRng;
+use std::path::PathBuf;
+
+/// Arguments of `rigcal calibrate`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Rig file (TOML).
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// Offline mode: divide using the points of this recording.
+    #[arg(long, conflicts_with = "scenario")]
+    pub recording: Option<PathBuf>,
+    /// Planning mode: a simulated-world scenario measures wherever the division asks.
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Division space.
+    #[arg(long, value_enum, default_value_t = Space::Joint)]
+    pub division: Space,
+    /// Demanded accuracy after compensation (mm).
+    #[arg(long, default_value_t = 0.1)]
+    pub accuracy_mm: f64,
+    /// Most regions [default: 110 for joint, 130 for Cartesian division, as in the paper].
+    #[arg(long)]
+    pub max_regions: Option<usize>,
+    /// Measurements per region.
+    #[arg(long, default_value_t = 20)]
+    pub per_region: usize,
+    /// Test points per region (planning mode).
+    #[arg(long, default_value_t = 20)]
+    pub test_points: usize,
+    /// Learner that generalises the region-wise CEPs.
+    #[arg(long, value_enum, default_value_t = LearnerKind::Fcmac)]
+    pub learner: LearnerKind,
+    /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Where to write the model (JSON).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let rig = Rig::load(&a.rig)?;
+    match (&a.recording, &a.scenario) {
+        (Some(dir), None) => {
+            let rec = Recording::read(dir, crate::kinematics::Robot::joints(&rig.chain))?;
+            let obs = super::observations(&rec);
+            if obs.is_empty() {
+                bail!("{}: no measured rows", dir.display());
+            }
+            let model = calibrate(
+                &rig,
+                Mode::Offline(&obs),
+                &a,
+                "offline",
+                Some(dir.display().to_string()),
+            )?;
+            model.save(&a.out)?;
+        }
+        (None, Some(scenario)) => {
+            let mut world = planning_world(&rig, scenario, a.seed)?;
+            let model = calibrate(
+                &rig,
+                Mode::Planning(&mut world),
+                &a,
+                "planning",
+                Some(format!("scenario {}", scenario.display())),
+            )?;
+            model.save(&a.out)?;
+        }
+        _ => bail!("give --recording DIR (offline) or --scenario FILE (planning)"),
+    }
+    println!("model written to {}", a.out.display());
+    Ok(())
+}
+
+/// Runs the division, trains the learner and builds the model file, printing a summary.
+pub(crate) fn calibrate(
+    rig: &Rig,
+    mode: Mode<'_>,
+    a: &Args,
+    mode_name: &str,
+    source: Option<String>,
+) -> Result<ModelFile> {
+    anyhow::ensure!(a.accuracy_mm > 0.0, "--accuracy-mm must be positive");
+    anyhow::ensure!(a.per_region >= 6, "--per-region must be at least 6");
+    let chain = &rig.chain;
+    let design = random_poses(
+        crate::kinematics::Robot::joints(chain),
+        rig.held(),
+        100,
+        &mut rand_chacha::ChaCha8Rng::seed_from_u64(a.seed),
+    );
+    let ident = analyse(chain, &design, &candidate_order(rig));
+    let max_regions = a.max_regions.unwrap_or(match a.division {
+        Space::Joint => 110,
+        Space::Cartesian => 130,
+    });
+    let opts = DivisionOptions {
+        space: a.division,
+        accuracy_mm: a.accuracy_mm,
+        max_regions,
+        per_region: a.per_region,
+        test_points: a.test_points,
+        seed: a.seed,
+        ..DivisionOptions::default()
+    };
+    let bar = ProgressBar::new(max_regions as u64);
+    bar.set_style(
+        ProgressStyle::with_template("dividing {bar:30} {pos}/{len} regions {elapsed}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let t0 = std::time::Instant::now();
+    let report = divide(rig, &ident.basis, mode, &opts, |n, _| {
+        bar.set_position(n as u64)
+    })?;
+    bar.finish_and_clear();
+    let t_div = t0.elapsed();
+    let t1 = std::time::Instant::now();
+    let scale = cep_scale(rig, &ident.basis);
+    let init: Vec<f64> = ident
+        .basis
+        .iter()
+        .map(|&i| report.conventional.params.get(i))
+        .collect();
+    let learner = learners::train(a.learner, &report.tree, &init, &scale, a.seed);
+    let t_learn = t1.elapsed();
+    print_summary(
+        &report,
+        max_regions,
+        a,
+        mode_name,
+        t_div,
+        t_learn,
+        learner.as_ref(),
+    );
+    let division = DivisionSummary {
+        accuracy_mm: a.accuracy_mm,
+        max_regions,
+        per_region: a.per_region,
+        regions: report.tree.leaf_count(),
+        measurements: report.observations.len(),
+        test_measurements: report.test_measurements,
+        mode: mode_name.into(),
+    };
+    Ok(ModelFile::new(
+        rig,
+        Provenance {
+            recording: source,
+            measurements: report.observations.len(),
+            notes: Some(format!(
+                "{mode_name} division in {:?} space, seed {}",
+                a.division, a.seed
+            )),
+        },
+        ModelBody::Variable {
+            conventional: entries(rig, &report.conventional),
+            fit: summary(&report.conventional),
+            division,
+            tree: report.tree,
+            learner,
+        },
+    ))
+}
+
+fn print_summary(
+    r: &DivisionReport,
+    max_regions: usize,
+    a: &Args,
+    mode: &str,
+    t_div: std::time::Duration,
+    t_learn: std::time::Duration,
+    learner: Option<&learners::Learner>,
+) {
+    let leaves = r.tree.root.leaves();
+    let passing = leaves
+        .iter()
+        .filter(|l| l.test.is_some_and(|t| t.max_mm <= a.accuracy_mm))
+        .count();
+    let paper = match a.division {
+        Space::Joint => "110 regions, 2200 measurements",
+        Space::Cartesian => "130 regions, 2600 measurements",
+    };
+    println!(
+        "{mode} division in {:?} space, demanded accuracy {} mm, {} per region (paper: {paper})",
+        a.division, a.accuracy_mm, a.per_region
+    );
+    println!(
+        "  regions {} (cap {max_regions}), {} meet the accuracy on their test points; {} identification measurements, {} test measurements; {:.2} s",
+        leaves.len(),
+        passing,
+        r.observations.len(),
+        r.test_measurements,
+        t_div.as_secs_f64()
+    );
+    let kappas: Vec<f64> = leaves
+        .iter()
+        .map(|l| l.kappa)
+        .filter(|k| k.is_finite())
+        .collect();
+    if !kappas.is_empty() {
+        let mut k = kappas.clone();
+        k.sort_by(f64::total_cmp);
+        println!(
+            "  κ (eq. 4) per region: median {:.3e}, max {:.3e}",
+            k[k.len() / 2],
+            k[k.len() - 1]
+        );
+    }
+    for l in leaves.iter().filter(|l| l.note.is_some()).take(5) {
+        println!(
+            "  region {} not split further: {}",
+            l.id,
+            l.note.as_deref().unwrap_or("")
+        );
+    }
+    println!(
+        "  conventional fit on the same data: RMS {:.4} mm, max {:.4} mm",
+        r.conventional.after.rms_mm, r.conventional.after.max_mm
+    );
+    match learner {
+        Some(crate::learners::Learner::Fcmac(f)) => {
+            let rep = f.report.unwrap_or(crate::learners::TrainReport {
+                epochs: 0,
+                max_error: f64::NAN,
+                rms_error: f64::NAN,
+                converged: false,
+            });
+            println!(
+                "  FCMAC: {:?} sensors, c = {:?}, {} association cells; {} epochs, pattern error max {:.4} RMS {:.4} (mm/deg); {:.2} s",
+                f.config.cells, f.config.c, f.cell_count(), rep.epochs, rep.max_error, rep.rms_error, t_learn.as_secs_f64()
+            );
+        }
+        Some(crate::learners::Learner::Cmac(c)) => {
+            let rep = c.report.unwrap_or(crate::learners::TrainReport {
+                epochs: 0,
+                max_error: f64::NAN,
+                rms_error: f64::NAN,
+                converged: false,
+            });
+            println!("  CMAC: {} layers of {:?} cells; {} epochs, pattern error max {:.4} RMS {:.4}; {:.2} s", c.config.layers, c.config.cells, rep.epochs, rep.max_error, rep.rms_error, t_learn.as_secs_f64());
+        }
+        None => println!("  no learner: compensation uses each region's CEPs"),
+    }
+}
+
+/// TEMPORARY until the scenario loader lands.
+fn planning_world(
+    _rig: &Rig,
+    _scenario: &std::path::Path,
+    _seed: u64,
+) -> Result<crate::cli::demo::WorldMeasurer> {
+    bail!("planning mode needs scenario files")
+}

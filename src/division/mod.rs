@@ -1,0 +1,23 @@
+//! Measurement space analysis (seed 000 section 4): measurement-location selection and the
+//! recursive workspace division of the variable D-H parameter model.
+//!
+//! # Conventions
+//! A region is a box in a three-dimensional *division space*: the major joints (the first three
+//! moving joints, rad) or spherical workspace coordinates (R mm, azimuth rad, elevation rad,
+//! [`crate::kinematics::SphericalFrame`]) of the nominal position of a pose. A region splits into
+//! two equal halves across its widest dimension, widths measured as fractions of that dimension's
+//! full range; ties go to the first dimension (conventions §5). At the region cap the region with
+//! the worst test error splits first.
+//!
+//! Each region's calibrated error parameters (CEPs) are the identifiable basis of the rig,
+//! fitted from the measurements that fall in the region with a weak prior towards its parent's
+//! CEPs, so directions a small region cannot see stay at the parent's values instead of
+//! wandering (the identifiable combinations are unaffected).
+
+mod planner;
+mod space;
+mod tree;
+
+pub use planner::{divide, DivisionError, DivisionOptions, DivisionReport, Measurer, Mode};
+pub use space::{Bounds, DivisionSpace, Space};
+pub use tree::{expand as tree_expand, RegionModel, RegionNode, RegionTest, RegionTree};

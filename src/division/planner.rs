@@ -1,0 +1,530 @@
+//! The recursive workspace division algorithm (seed 000 section 4.2) and measurement-location
+//! selection (section 4.1).
+//!
+//! Step 1: the whole workspace is one region. Step 2: choose measurement locations (measurable,
+//! κ of eq. (4) small) and identify the region's CEPs. Step 3: test them at random points with
+//! compensation. Step 4: a region that misses the demanded accuracy splits into two equal halves,
+//! worst first, until every region passes, the region cap is reached, or a region is too small
+//! (or too ill-conditioned) to identify.
+//!
+//! *Planning* mode asks a [`Measurer`] (the simulated world, or the rig) for each measurement;
+//! a half keeps the measurements of its parent that fall in it and adds new ones up to the
+//! per-region count. Test points are measured at the compensated command: the error is
+//! measured − target. *Offline* mode works from a recording: a region uses the points that fall
+//! in it, every fifth held out to test (prediction error), all of them in its final fit.
+
+use super::space::{Bounds, DivisionSpace, Space, SpaceError};
+use super::tree::{expand, RegionNode, RegionTest, RegionTree};
+use crate::compensation::{compensate_from, CompensationOptions};
+use crate::identification::identifiability::kappa_eq4;
+use crate::identification::{fit, FitOptions, FitResult, Observation, Prior};
+use crate::kinematics::{ErrorParams, Robot};
+use crate::rig::Rig;
+use nalgebra::{DMatrix, Vector3};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+/// Something that measures the arm: the simulated world or the rig.
+pub trait Measurer {
+    /// The measured point (world, mm) with the arm commanded to `q`, or None when the
+    /// measurement failed (no contact, out of reach of the instrument).
+    fn measure(&mut self, q: &[f64]) -> Option<Vector3<f64>>;
+}
+
+/// Where the measurements come from.
+pub enum Mode<'a> {
+    /// The division asks for measurements where it needs them.
+    Planning(&'a mut dyn Measurer),
+    /// The division uses the points of a recording that fall in each region.
+    Offline(&'a [Observation]),
+}
+
+/// Settings of the division; defaults are the paper's.
+#[derive(Debug, Clone)]
+pub struct DivisionOptions {
+    /// Joint or Cartesian (spherical) division.
+    pub space: Space,
+    /// Demanded accuracy after compensation (mm).
+    pub accuracy_mm: f64,
+    /// Most regions (leaves).
+    pub max_regions: usize,
+    /// Measurements per region.
+    pub per_region: usize,
+    /// Test points per region (planning mode).
+    pub test_points: usize,
+    /// A region whose measurement locations cannot bring κ below this is not split.
+    pub kappa_max: f64,
+    /// A region narrower than this fraction of the workspace in any dimension is not split.
+    pub min_fraction: f64,
+    /// Candidate locations sampled per region for the κ selection.
+    pub candidates: usize,
+    /// Exchange steps of the κ selection.
+    pub exchange_steps: usize,
+    /// Prior σ of a region's CEPs around its parent's: lengths (mm) and angles (rad).
+    pub prior_sigma: (f64, f64),
+    /// Measurement noise assumed for weighting the prior (mm).
+    pub noise_mm: f64,
+    /// Seed of every random choice.
+    pub seed: u64,
+}
+
+impl Default for DivisionOptions {
+    fn default() -> Self {
+        Self {
+            space: Space::Joint,
+            accuracy_mm: 0.1,
+            max_regions: 110,
+            per_region: 20,
+            test_points: 10,
+            kappa_max: 1e10,
+            min_fraction: 1.0 / 64.0,
+            candidates: 60,
+            exchange_steps: 60,
+            prior_sigma: (0.5, 0.1f64.to_radians()),
+            noise_mm: 0.02,
+            seed: 1,
+        }
+    }
+}
+
+/// Why a division could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DivisionError {
+    /// The division space does not fit the rig.
+    #[error(transparent)]
+    Space(#[from] SpaceError),
+    /// The whole workspace could not be identified.
+    #[error(
+        "the whole workspace could not be identified from {measurements} measurements: {reason}"
+    )]
+    Root {
+        /// Measurements available.
+        measurements: usize,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// What a division produced.
+pub struct DivisionReport {
+    /// The region tree.
+    pub tree: RegionTree,
+    /// The division space.
+    pub space: DivisionSpace,
+    /// Conventional calibration on the same identification measurements.
+    pub conventional: FitResult,
+    /// Identification measurements used.
+    pub observations: Vec<Observation>,
+    /// Test measurements made (planning mode).
+    pub test_measurements: usize,
+}
+
+struct Ctx<'a, 'm> {
+    rig: &'a Rig,
+    space: DivisionSpace,
+    basis: &'a [usize],
+    opts: &'a DivisionOptions,
+    mode: Mode<'m>,
+    data: Vec<(Observation, [f64; 3])>,
+    rng: ChaCha8Rng,
+    tests_made: usize,
+    n_params: usize,
+}
+
+/// Divides the workspace of `rig`, identifying the CEPs of `basis` (layout indices) per region.
+pub fn divide(
+    rig: &Rig,
+    basis: &[usize],
+    mode: Mode<'_>,
+    opts: &DivisionOptions,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<DivisionReport, DivisionError> {
+    let space = DivisionSpace::new(rig, opts.space)?;
+    let full = space.full;
+    let mut ctx = Ctx {
+        rig,
+        space,
+        basis,
+        opts,
+        data: Vec::new(),
+        rng: ChaCha8Rng::seed_from_u64(opts.seed),
+        tests_made: 0,
+        n_params: rig.chain.layout().len(),
+        mode,
+    };
+    if let Mode::Offline(obs) = &ctx.mode {
+        let obs = obs.to_vec();
+        ctx.data = obs
+            .into_iter()
+            .map(|o| {
+                let x = ctx.space.coords(&o.q);
+                (o, x)
+            })
+            .collect();
+    }
+    let mut root = RegionNode {
+        id: "r".into(),
+        bounds: full,
+        cep: None,
+        kappa: f64::INFINITY,
+        measurements: 0,
+        test: None,
+        note: None,
+        children: Vec::new(),
+    };
+    ctx.populate(&root.bounds, ctx.opts.per_region.max(3 * basis.len()));
+    match ctx.identify(&root.bounds, None) {
+        Ok((cep, kappa, n)) => {
+            root.cep = Some(cep);
+            root.kappa = kappa;
+            root.measurements = n;
+        }
+        Err(reason) => {
+            return Err(DivisionError::Root {
+                measurements: ctx.data.len(),
+                reason,
+            })
+        }
+    }
+    root.test = ctx.test(&root);
+    let mut leaves = 1;
+    progress(leaves, opts.max_regions);
+    while leaves < opts.max_regions {
+        let Some(path) = worst_failing_leaf(&root, opts.accuracy_mm) else {
+            break;
+        };
+        let node = node_at_mut(&mut root, &path);
+        match ctx.split(node) {
+            Ok(children) => {
+                node.children = children;
+                leaves += 1;
+                progress(leaves, opts.max_regions);
+            }
+            Err(reason) => node.note = Some(reason),
+        }
+    }
+    for leaf in leaves_mut(&mut root) {
+        if leaf.note.is_none() && leaf.test.is_some_and(|t| t.max_mm > opts.accuracy_mm) {
+            leaf.note = Some(format!("region cap of {} reached", opts.max_regions));
+        }
+    }
+    let all: Vec<Observation> = ctx.data.iter().map(|(o, _)| o.clone()).collect();
+    let conventional = fit(
+        &rig.chain,
+        &all,
+        &ErrorParams::zeros(rig.chain.layout()),
+        basis,
+        &FitOptions::default(),
+    )
+    .map_err(|e| DivisionError::Root {
+        measurements: all.len(),
+        reason: e.to_string(),
+    })?;
+    let layout = rig.chain.layout();
+    Ok(DivisionReport {
+        tree: RegionTree {
+            space: opts.space,
+            full,
+            basis: basis
+                .iter()
+                .map(|&i| layout.name(layout.ids()[i]))
+                .collect(),
+            root,
+        },
+        space: ctx.space,
+        conventional,
+        observations: all,
+        test_measurements: ctx.tests_made,
+    })
+}
+
+fn worst_failing_leaf(root: &RegionNode, accuracy: f64) -> Option<Vec<usize>> {
+    fn walk(
+        n: &RegionNode,
+        path: &mut Vec<usize>,
+        accuracy: f64,
+        best: &mut Option<(f64, Vec<usize>)>,
+    ) {
+        if n.is_leaf() {
+            if n.note.is_none() {
+                if let Some(t) = n.test {
+                    if t.max_mm > accuracy && best.as_ref().is_none_or(|(e, _)| t.max_mm > *e) {
+                        *best = Some((t.max_mm, path.clone()));
+                    }
+                }
+            }
+            return;
+        }
+        for (i, c) in n.children.iter().enumerate() {
+            path.push(i);
+            walk(c, path, accuracy, best);
+            path.pop();
+        }
+    }
+    let mut best = None;
+    walk(root, &mut Vec::new(), accuracy, &mut best);
+    best.map(|(_, p)| p)
+}
+
+fn node_at_mut<'n>(root: &'n mut RegionNode, path: &[usize]) -> &'n mut RegionNode {
+    let mut n = root;
+    for &i in path {
+        n = &mut n.children[i];
+    }
+    n
+}
+
+fn leaves_mut(n: &mut RegionNode) -> Vec<&mut RegionNode> {
+    if n.children.is_empty() {
+        vec![n]
+    } else {
+        n.children.iter_mut().flat_map(leaves_mut).collect()
+    }
+}
+
+impl Ctx<'_, '_> {
+    fn in_box(&self, b: &Bounds) -> Vec<&(Observation, [f64; 3])> {
+        self.data
+            .iter()
+            .filter(|(_, x)| b.contains(x, &self.space.full))
+            .collect()
+    }
+
+    /// Planning mode: adds measurements in `b` until it holds `target` of them.
+    fn populate(&mut self, b: &Bounds, target: usize) {
+        let Mode::Planning(_) = self.mode else { return };
+        let existing: Vec<Vec<f64>> = self
+            .in_box(b)
+            .into_iter()
+            .map(|(o, _)| o.q.clone())
+            .collect();
+        if existing.len() >= target {
+            return;
+        }
+        let chosen = self.select(b, &existing, target - existing.len());
+        let Mode::Planning(m) = &mut self.mode else {
+            return;
+        };
+        for q in chosen {
+            if let Some(p) = m.measure(&q) {
+                let x = self.space.coords(&q);
+                self.data.push((Observation { q, p }, x));
+            }
+        }
+    }
+
+    /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, keep
+    /// κ of eq. (4) small (random start, then exchanges that lower κ).
+    fn select(&mut self, b: &Bounds, existing: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
+        let mut pool = Vec::new();
+        for _ in 0..self.opts.candidates.max(n) {
+            if let Some(q) = self.space.sample(b, &mut self.rng, 20) {
+                pool.push(q);
+            }
+        }
+        if pool.len() <= n {
+            return pool;
+        }
+        pool.shuffle(&mut self.rng);
+        let e = ErrorParams::zeros(self.rig.chain.layout());
+        let block = |q: &[f64]| {
+            let (_, j) = self.rig.chain.position_and_param_jacobian(q, &e);
+            DMatrix::from_fn(3, self.basis.len(), |r, c| j[(r, self.basis[c])])
+        };
+        let fixed: Vec<DMatrix<f64>> = existing.iter().map(|q| block(q)).collect();
+        let blocks: Vec<DMatrix<f64>> = pool.iter().map(|q| block(q)).collect();
+        let kappa_of = |sel: &[usize]| {
+            let rows = 3 * (fixed.len() + sel.len());
+            let mut m = DMatrix::zeros(rows, self.basis.len());
+            for (k, bl) in fixed
+                .iter()
+                .chain(sel.iter().map(|&i| &blocks[i]))
+                .enumerate()
+            {
+                m.view_mut((3 * k, 0), (3, self.basis.len())).copy_from(bl);
+            }
+            kappa_eq4(&m)
+        };
+        let mut chosen: Vec<usize> = (0..n).collect();
+        let mut rest: Vec<usize> = (n..pool.len()).collect();
+        let mut best = kappa_of(&chosen);
+        for _ in 0..self.opts.exchange_steps {
+            let i = self.rng.gen_range(0..chosen.len());
+            let j = self.rng.gen_range(0..rest.len());
+            std::mem::swap(&mut chosen[i], &mut rest[j]);
+            let k = kappa_of(&chosen);
+            if k < best {
+                best = k;
+            } else {
+                std::mem::swap(&mut chosen[i], &mut rest[j]);
+            }
+        }
+        chosen.into_iter().map(|i| pool[i].clone()).collect()
+    }
+
+    fn prior(&self, parent: &[f64]) -> Prior {
+        let layout = self.rig.chain.layout();
+        let weight = self
+            .basis
+            .iter()
+            .map(|&i| {
+                let sigma = if layout.ids()[i].kind.is_angle() {
+                    self.opts.prior_sigma.1
+                } else {
+                    self.opts.prior_sigma.0
+                };
+                self.opts.noise_mm / sigma
+            })
+            .collect();
+        Prior {
+            mean: expand(self.basis, self.n_params, parent),
+            weight,
+        }
+    }
+
+    /// Identifies the CEPs of box `b` (offline: leaving every fifth point out when `hold_out`).
+    fn fit_box(
+        &self,
+        b: &Bounds,
+        parent: Option<&[f64]>,
+        hold_out: bool,
+    ) -> Result<(Vec<f64>, f64, usize), String> {
+        let obs: Vec<Observation> = self
+            .in_box(b)
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| !(hold_out && k % 5 == 4))
+            .map(|(_, (o, _))| o.clone())
+            .collect();
+        let min_points = (self.basis.len() / 3 + 1).max(self.opts.per_region / 2);
+        if obs.len() < min_points {
+            return Err(format!(
+                "only {} measurable points in the region ({} needed)",
+                obs.len(),
+                min_points
+            ));
+        }
+        let mut fo = FitOptions::default();
+        let start = match parent {
+            Some(p) => {
+                fo.prior = Some(self.prior(p));
+                expand(self.basis, self.n_params, p)
+            }
+            None => ErrorParams::zeros(self.rig.chain.layout()),
+        };
+        let r = fit(&self.rig.chain, &obs, &start, self.basis, &fo).map_err(|e| e.to_string())?;
+        if r.kappa > self.opts.kappa_max {
+            return Err(format!(
+                "κ = {:.2e} exceeds {:.0e}: the region is too small to identify its CEPs",
+                r.kappa, self.opts.kappa_max
+            ));
+        }
+        let cep = self.basis.iter().map(|&i| r.params.get(i)).collect();
+        Ok((cep, r.kappa, obs.len()))
+    }
+
+    fn identify(
+        &self,
+        b: &Bounds,
+        parent: Option<&[f64]>,
+    ) -> Result<(Vec<f64>, f64, usize), String> {
+        self.fit_box(b, parent, false)
+    }
+
+    /// Tests a region's CEPs: planning mode measures the arm at compensated commands for random
+    /// targets in the region; offline mode predicts the held-out points of a fit without them.
+    fn test(&mut self, node: &RegionNode) -> Option<RegionTest> {
+        let cep = node.cep.as_ref()?;
+        let errors: Vec<f64> = match self.mode {
+            Mode::Planning(_) => self.planning_test(&node.bounds, cep),
+            Mode::Offline(_) => self.offline_test(&node.bounds, cep),
+        };
+        if errors.is_empty() {
+            return None;
+        }
+        let n = errors.len();
+        Some(RegionTest {
+            n,
+            max_mm: errors.iter().copied().fold(0.0, f64::max),
+            rms_mm: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        })
+    }
+
+    fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
+        let model = expand(self.basis, self.n_params, cep);
+        let nominal = ErrorParams::zeros(self.rig.chain.layout());
+        let opts = CompensationOptions::default();
+        let mut errors = Vec::new();
+        for _ in 0..self.opts.test_points {
+            let Some(q) = self.space.sample(b, &mut self.rng, 20) else {
+                continue;
+            };
+            let target = self.rig.chain.position(&q, &nominal);
+            let Ok(c) =
+                compensate_from(&self.rig.chain, &model, &target, self.rig.held(), q, &opts)
+            else {
+                continue;
+            };
+            let Mode::Planning(m) = &mut self.mode else {
+                break;
+            };
+            self.tests_made += 1;
+            if let Some(p) = m.measure(&c.command) {
+                errors.push((p - target).norm());
+            }
+        }
+        errors
+    }
+
+    fn offline_test(&self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
+        let held: Vec<&Observation> = self
+            .in_box(b)
+            .into_iter()
+            .enumerate()
+            .filter(|(k, _)| k % 5 == 4)
+            .map(|(_, (o, _))| o)
+            .collect();
+        let fitted = self
+            .fit_box(b, Some(cep), true)
+            .map(|(c, _, _)| c)
+            .unwrap_or_else(|_| cep.to_vec());
+        let model = expand(self.basis, self.n_params, &fitted);
+        held.iter()
+            .map(|o| (o.p - self.rig.chain.position(&o.q, &model)).norm())
+            .collect()
+    }
+
+    /// Splits a region into two halves with their CEPs and tests, or says why it cannot.
+    fn split(&mut self, node: &RegionNode) -> Result<Vec<RegionNode>, String> {
+        let full = self.space.full;
+        if node.bounds.min_fraction(&full) * 0.5 < self.opts.min_fraction {
+            return Err(format!(
+                "narrower than 1/{:.0} of the workspace",
+                1.0 / self.opts.min_fraction
+            ));
+        }
+        let dim = node.bounds.widest(&full);
+        let (a, b) = node.bounds.halves(dim);
+        let parent = node.cep.clone();
+        let mut children = Vec::new();
+        for (k, bounds) in [a, b].into_iter().enumerate() {
+            self.populate(&bounds, self.opts.per_region);
+            let (cep, kappa, n) = self.identify(&bounds, parent.as_deref())?;
+            let mut child = RegionNode {
+                id: format!("{}{k}", node.id),
+                bounds,
+                cep: Some(cep),
+                kappa,
+                measurements: n,
+                test: None,
+                note: None,
+                children: Vec::new(),
+            };
+            child.test = self.test(&child);
+            children.push(child);
+        }
+        Ok(children)
+    }
+}

@@ -1,0 +1,264 @@
+//! Division spaces and region boxes. Joint coordinates in rad (or mm for a prismatic major
+//! joint); spherical coordinates R in mm, azimuth and elevation in rad.
+
+use crate::kinematics::{
+    solve_position_ik, ErrorParams, IkOptions, Robot, Spherical, SphericalFrame,
+};
+use crate::rig::Rig;
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+/// Which space the workspace is divided in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Space {
+    /// The major joints (q1, q2, q3 for the RV-M2).
+    Joint,
+    /// Spherical workspace coordinates (R, azimuth, elevation).
+    Cartesian,
+}
+
+/// An axis-aligned box in a division space.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Bounds {
+    /// Lower corner.
+    pub lo: [f64; 3],
+    /// Upper corner.
+    pub hi: [f64; 3],
+}
+
+impl Bounds {
+    /// True when `x` lies in the box (lower faces closed, upper faces open, except at the
+    /// workspace's own upper faces, which `full` closes).
+    pub fn contains(&self, x: &[f64; 3], full: &Bounds) -> bool {
+        (0..3).all(|k| {
+            x[k] >= self.lo[k]
+                && (x[k] < self.hi[k] || (self.hi[k] >= full.hi[k] && x[k] <= self.hi[k]))
+        })
+    }
+
+    /// The dimension to split: the widest as a fraction of the full range, ties to the first.
+    pub fn widest(&self, full: &Bounds) -> usize {
+        let frac = |k: usize| (self.hi[k] - self.lo[k]) / (full.hi[k] - full.lo[k]);
+        let mut best = 0;
+        for k in 1..3 {
+            if frac(k) > frac(best) + 1e-12 {
+                best = k;
+            }
+        }
+        best
+    }
+
+    /// The two equal halves across dimension `k`.
+    pub fn halves(&self, k: usize) -> (Bounds, Bounds) {
+        let mid = 0.5 * (self.lo[k] + self.hi[k]);
+        let mut a = *self;
+        let mut b = *self;
+        a.hi[k] = mid;
+        b.lo[k] = mid;
+        (a, b)
+    }
+
+    /// Fraction of the full volume.
+    pub fn volume_fraction(&self, full: &Bounds) -> f64 {
+        (0..3)
+            .map(|k| (self.hi[k] - self.lo[k]) / (full.hi[k] - full.lo[k]))
+            .product()
+    }
+
+    /// Smallest width as a fraction of the full range.
+    pub fn min_fraction(&self, full: &Bounds) -> f64 {
+        (0..3)
+            .map(|k| (self.hi[k] - self.lo[k]) / (full.hi[k] - full.lo[k]))
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// The centre.
+    pub fn centre(&self) -> [f64; 3] {
+        [
+            0.5 * (self.lo[0] + self.hi[0]),
+            0.5 * (self.lo[1] + self.hi[1]),
+            0.5 * (self.lo[2] + self.hi[2]),
+        ]
+    }
+}
+
+/// A division space for one rig: maps poses to coordinates and samples poses in boxes.
+#[derive(Debug, Clone)]
+pub struct DivisionSpace {
+    /// The space.
+    pub space: Space,
+    /// The whole workspace.
+    pub full: Bounds,
+    major: [usize; 3],
+    spherical: SphericalFrame,
+    rig: Rig,
+}
+
+/// Why a division space cannot be set up for a rig.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SpaceError {
+    /// Joint-space division needs three moving joints.
+    #[error("joint-space division needs at least three moving joints; this rig moves {moving}")]
+    TooFewJoints {
+        /// Moving joints.
+        moving: usize,
+    },
+}
+
+impl DivisionSpace {
+    /// The division space of a rig. Joint space uses the first three moving joints; Cartesian
+    /// space uses the rig's `[workspace]` bounds, or bounds sampled from random poses when the
+    /// rig file gives none.
+    pub fn new(rig: &Rig, space: Space) -> Result<Self, SpaceError> {
+        let moving = rig.moving_joints();
+        let spherical = SphericalFrame::of(&rig.chain);
+        let (major, full) = match space {
+            Space::Joint => {
+                if moving.len() < 3 {
+                    return Err(SpaceError::TooFewJoints {
+                        moving: moving.len(),
+                    });
+                }
+                let j = rig.chain.joints();
+                let major = [moving[0], moving[1], moving[2]];
+                (
+                    major,
+                    Bounds {
+                        lo: major.map(|m| j[m].min),
+                        hi: major.map(|m| j[m].max),
+                    },
+                )
+            }
+            Space::Cartesian => {
+                let full = match rig.spherical_bounds {
+                    Some(b) => Bounds {
+                        lo: [b[0][0], b[1][0], b[2][0]],
+                        hi: [b[0][1], b[1][1], b[2][1]],
+                    },
+                    None => sampled_spherical_bounds(rig, &spherical),
+                };
+                ([0, 1, 2], full)
+            }
+        };
+        Ok(Self {
+            space,
+            full,
+            major,
+            spherical,
+            rig: rig.clone(),
+        })
+    }
+
+    /// Coordinates of a pose in this space.
+    pub fn coords(&self, q: &[f64]) -> [f64; 3] {
+        match self.space {
+            Space::Joint => self.major.map(|m| q[m]),
+            Space::Cartesian => {
+                let p = self
+                    .rig
+                    .chain
+                    .with_frame(nalgebra::Isometry3::identity())
+                    .position(q, &ErrorParams::zeros(self.rig.chain.layout()));
+                let s = self.spherical.to_spherical(&p);
+                [s.r, s.azimuth, s.elevation]
+            }
+        }
+    }
+
+    /// A pose in box `b` drawn at random, measurable on the rig, or None after `tries` attempts.
+    pub fn sample<R: Rng + ?Sized>(
+        &self,
+        b: &Bounds,
+        rng: &mut R,
+        tries: usize,
+    ) -> Option<Vec<f64>> {
+        let joints = self.rig.chain.joints();
+        let held = self.rig.held();
+        for _ in 0..tries {
+            let x: [f64; 3] = std::array::from_fn(|k| rng.gen_range(b.lo[k]..=b.hi[k]));
+            let q = match self.space {
+                Space::Joint => {
+                    let mut q: Vec<f64> = joints
+                        .iter()
+                        .enumerate()
+                        .map(|(j, s)| held[j].unwrap_or_else(|| rng.gen_range(s.min..=s.max)))
+                        .collect();
+                    for (k, &m) in self.major.iter().enumerate() {
+                        q[m] = x[k];
+                    }
+                    q
+                }
+                Space::Cartesian => {
+                    let p = self.spherical.to_world(&Spherical {
+                        r: x[0],
+                        azimuth: x[1],
+                        elevation: x[2],
+                    });
+                    let world = self.rig.chain.with_frame(nalgebra::Isometry3::identity());
+                    let opts = IkOptions {
+                        max_starts: 8,
+                        ..IkOptions::default()
+                    };
+                    match solve_position_ik(
+                        &world,
+                        &ErrorParams::zeros(world.layout()),
+                        &p,
+                        held,
+                        None,
+                        &opts,
+                    ) {
+                        Ok(q) => q,
+                        Err(_) => continue,
+                    }
+                }
+            };
+            if self.rig.measurable(&q).is_ok() && b.contains(&self.coords(&q), &self.full) {
+                return Some(q);
+            }
+        }
+        None
+    }
+
+    /// Names of the three coordinates, with units, for reports.
+    pub fn axis_names(&self) -> [String; 3] {
+        match self.space {
+            Space::Joint => self
+                .major
+                .map(|m| format!("q{} ({})", m + 1, self.rig.chain.joints()[m].kind.unit())),
+            Space::Cartesian => [
+                "R (mm)".into(),
+                "azimuth (deg)".into(),
+                "elevation (deg)".into(),
+            ],
+        }
+    }
+
+    /// A coordinate in file units (deg for angles).
+    pub fn to_file_units(&self, k: usize, v: f64) -> f64 {
+        match self.space {
+            Space::Joint => self.rig.chain.joints()[self.major[k]].kind.to_file_units(v),
+            Space::Cartesian if k == 0 => v,
+            Space::Cartesian => v.to_degrees(),
+        }
+    }
+}
+
+fn sampled_spherical_bounds(rig: &Rig, sf: &SphericalFrame) -> Bounds {
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x5eed);
+    let poses = crate::identification::random_poses(rig.chain.joints(), rig.held(), 4000, &mut rng);
+    let world = rig.chain.with_frame(nalgebra::Isometry3::identity());
+    let e = ErrorParams::zeros(world.layout());
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for q in poses {
+        let s = sf.to_spherical(&world.position(&q, &e));
+        for (k, v) in [s.r, s.azimuth, s.elevation].into_iter().enumerate() {
+            lo[k] = lo[k].min(v);
+            hi[k] = hi[k].max(v);
+        }
+    }
+    Bounds { lo, hi }
+}

@@ -1,0 +1,166 @@
+//! The region tree of the variable D-H model and its use as an [`ErrorModel`].
+//! CEP values are stored in internal units (mm, rad), in the order of `basis`.
+
+use super::space::{Bounds, DivisionSpace, Space};
+use crate::kinematics::{ErrorModel, ErrorParams};
+use serde::{Deserialize, Serialize};
+
+/// Test of a region's CEPs: position error after compensation (or prediction) at test points.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct RegionTest {
+    /// Test points.
+    pub n: usize,
+    /// Largest error (mm).
+    pub max_mm: f64,
+    /// RMS error (mm).
+    pub rms_mm: f64,
+}
+
+/// A region: a box, its CEPs, and its halves once split.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegionNode {
+    /// Path from the root: `r`, `r0`, `r01`, …
+    pub id: String,
+    /// The box.
+    pub bounds: Bounds,
+    /// CEPs (internal units, basis order); None for a region without usable measurements.
+    pub cep: Option<Vec<f64>>,
+    /// κ of eq. (4) of the region's identification.
+    pub kappa: f64,
+    /// Measurements used.
+    pub measurements: usize,
+    /// Test outcome.
+    pub test: Option<RegionTest>,
+    /// Why the region was not split further, when it missed the accuracy.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+    /// The two halves, once split.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub children: Vec<RegionNode>,
+}
+
+impl RegionNode {
+    /// True for a leaf.
+    pub fn is_leaf(&self) -> bool {
+        self.children.is_empty()
+    }
+
+    /// The leaves below (or this node).
+    pub fn leaves(&self) -> Vec<&RegionNode> {
+        if self.is_leaf() {
+            vec![self]
+        } else {
+            self.children.iter().flat_map(|c| c.leaves()).collect()
+        }
+    }
+
+    /// Every node, depth first.
+    pub fn nodes(&self) -> Vec<&RegionNode> {
+        let mut v = vec![self];
+        for c in &self.children {
+            v.extend(c.nodes());
+        }
+        v
+    }
+
+    /// The deepest node containing `x` that has CEPs.
+    pub fn lookup(&self, x: &[f64; 3], full: &Bounds) -> Option<&RegionNode> {
+        let own = self.cep.as_ref().map(|_| self);
+        for c in &self.children {
+            if c.bounds.contains(x, full) {
+                return c.lookup(x, full).or(own);
+            }
+        }
+        own
+    }
+
+    /// The leaf containing `x` (whether or not it has CEPs).
+    pub fn leaf_at(&self, x: &[f64; 3], full: &Bounds) -> &RegionNode {
+        for c in &self.children {
+            if c.bounds.contains(x, full) {
+                return c.leaf_at(x, full);
+            }
+        }
+        self
+    }
+}
+
+/// A division: the space, the basis the CEPs are given in, and the tree.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RegionTree {
+    /// Joint or Cartesian.
+    pub space: Space,
+    /// The whole workspace.
+    pub full: Bounds,
+    /// Parameter names of the CEP vector.
+    pub basis: Vec<String>,
+    /// The root region (the whole workspace).
+    pub root: RegionNode,
+}
+
+impl RegionTree {
+    /// Number of leaves.
+    pub fn leaf_count(&self) -> usize {
+        self.root.leaves().len()
+    }
+}
+
+/// A region tree as an error model: the CEPs of the region a pose falls in.
+pub struct RegionModel {
+    tree: RegionTree,
+    space: DivisionSpace,
+    basis: Vec<usize>,
+    n_params: usize,
+}
+
+impl RegionModel {
+    /// Joins a tree with its division space; `basis` are layout indices of the CEP vector and
+    /// `n_params` the layout's length.
+    pub fn new(tree: RegionTree, space: DivisionSpace, basis: Vec<usize>, n_params: usize) -> Self {
+        Self {
+            tree,
+            space,
+            basis,
+            n_params,
+        }
+    }
+
+    /// The tree.
+    pub fn tree(&self) -> &RegionTree {
+        &self.tree
+    }
+
+    /// The division space.
+    pub fn space(&self) -> &DivisionSpace {
+        &self.space
+    }
+
+    /// Expands a CEP vector into full error parameters.
+    pub fn expand(&self, cep: &[f64]) -> ErrorParams {
+        expand(&self.basis, self.n_params, cep)
+    }
+}
+
+/// Expands basis values into a full parameter vector of length `n`.
+pub fn expand(basis: &[usize], n: usize, cep: &[f64]) -> ErrorParams {
+    let mut e = ErrorParams::from_vector(nalgebra::DVector::zeros(n));
+    for (&i, &v) in basis.iter().zip(cep) {
+        e.set(i, v);
+    }
+    e
+}
+
+impl ErrorModel for RegionModel {
+    fn params_at(&self, q: &[f64]) -> ErrorParams {
+        let x = self.space.coords(q);
+        match self
+            .tree
+            .root
+            .lookup(&x, &self.tree.full)
+            .and_then(|n| n.cep.as_ref())
+        {
+            Some(cep) => self.expand(cep),
+            None => ErrorParams::from_vector(nalgebra::DVector::zeros(self.n_params)),
+        }
+    }
+}

@@ -1,0 +1,186 @@
+//! Learners that generalise region-wise CEPs over the workspace (seed 000 section 5 and the
+//! appendix): the FCMAC and, for the comparison the paper makes, Albus's plain CMAC.
+//!
+//! Both map a point of a three-dimensional division space to a vector of outputs (the CEPs).
+//! Inputs are in the division space's internal units (rad, mm); outputs are trained in file
+//! units scaled per output so a single tolerance applies (mm and degrees).
+
+mod cmac;
+mod fcmac;
+
+pub use cmac::{Cmac, CmacConfig};
+pub use fcmac::{Fcmac, FcmacConfig};
+
+use crate::division::{Bounds, DivisionSpace, RegionTree};
+use crate::kinematics::{ErrorModel, ErrorParams};
+use rand::{Rng, SeedableRng};
+use serde::{Deserialize, Serialize};
+
+/// A training pattern: an input point and the outputs wanted there.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pattern {
+    /// Input (division-space coordinates).
+    pub x: [f64; 3],
+    /// Desired outputs.
+    pub y: Vec<f64>,
+}
+
+/// How training went.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrainReport {
+    /// Epochs run.
+    pub epochs: usize,
+    /// Largest |desired − produced| over patterns and outputs at the end.
+    pub max_error: f64,
+    /// RMS of the same.
+    pub rms_error: f64,
+    /// Whether the tolerance was reached.
+    pub converged: bool,
+}
+
+/// A trained learner.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
+pub enum Learner {
+    /// Fuzzy CMAC.
+    Fcmac(Fcmac),
+    /// Albus CMAC.
+    Cmac(Cmac),
+}
+
+impl Learner {
+    /// The outputs at `x`.
+    pub fn predict(&self, x: &[f64; 3]) -> Vec<f64> {
+        match self {
+            Learner::Fcmac(f) => f.predict(x),
+            Learner::Cmac(c) => c.predict(x),
+        }
+    }
+}
+
+/// Training patterns from a region tree: `per_region` points spread over each leaf that has
+/// CEPs (its centre and random points), each asking for the leaf's CEPs in file units.
+pub fn patterns_from_tree(
+    tree: &RegionTree,
+    scale: &[f64],
+    per_region: usize,
+    seed: u64,
+) -> Vec<Pattern> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut out = Vec::new();
+    for leaf in tree.root.leaves() {
+        let Some(cep) = &leaf.cep else { continue };
+        let y: Vec<f64> = cep.iter().zip(scale).map(|(v, s)| v * s).collect();
+        out.push(Pattern {
+            x: leaf.bounds.centre(),
+            y: y.clone(),
+        });
+        for _ in 1..per_region.max(1) {
+            out.push(Pattern {
+                x: random_in(&leaf.bounds, &mut rng),
+                y: y.clone(),
+            });
+        }
+    }
+    out
+}
+
+fn random_in<R: Rng + ?Sized>(b: &Bounds, rng: &mut R) -> [f64; 3] {
+    std::array::from_fn(|k| rng.gen_range(b.lo[k]..=b.hi[k]))
+}
+
+/// A learner as an error model: CEPs at the division-space coordinates of a pose.
+pub struct LearnedModel {
+    learner: Learner,
+    space: DivisionSpace,
+    basis: Vec<usize>,
+    scale: Vec<f64>,
+    n_params: usize,
+}
+
+impl LearnedModel {
+    /// Joins a trained learner with its space; `scale` converts internal units to the learner's
+    /// output units (e.g. 180/π for angles, 1 for mm).
+    pub fn new(
+        learner: Learner,
+        space: DivisionSpace,
+        basis: Vec<usize>,
+        scale: Vec<f64>,
+        n_params: usize,
+    ) -> Self {
+        Self {
+            learner,
+            space,
+            basis,
+            scale,
+            n_params,
+        }
+    }
+
+    /// The CEPs (internal units, basis order) at a pose.
+    pub fn cep_at(&self, q: &[f64]) -> Vec<f64> {
+        let y = self.learner.predict(&self.space.coords(q));
+        y.iter().zip(&self.scale).map(|(v, s)| v / s).collect()
+    }
+
+    /// The learner.
+    pub fn learner(&self) -> &Learner {
+        &self.learner
+    }
+}
+
+impl ErrorModel for LearnedModel {
+    fn params_at(&self, q: &[f64]) -> ErrorParams {
+        crate::division::tree_expand(&self.basis, self.n_params, &self.cep_at(q))
+    }
+}
+
+/// Which learner generalises the region-wise CEPs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum LearnerKind {
+    /// None: compensation uses the CEPs of the region a target falls in.
+    None,
+    /// Albus's CMAC.
+    Cmac,
+    /// The fuzzy CMAC of seed 000 (default).
+    Fcmac,
+}
+
+/// Patterns drawn per region when training a learner.
+pub const PATTERNS_PER_REGION: usize = 9;
+
+/// Trains a learner of `kind` on the leaves of `tree`; weights start at `init` (conventional
+/// CEPs, internal units); `scale` converts CEPs to output units. The input with 17 sensors is the
+/// first joint's coordinate (q1 in joint space, azimuth in Cartesian space, which equals q1).
+pub fn train(
+    kind: LearnerKind,
+    tree: &RegionTree,
+    init: &[f64],
+    scale: &[f64],
+    seed: u64,
+) -> Option<Learner> {
+    let init_scaled: Vec<f64> = init.iter().zip(scale).map(|(v, s)| v * s).collect();
+    let patterns = patterns_from_tree(tree, scale, PATTERNS_PER_REGION, seed);
+    let widest = match tree.space {
+        crate::division::Space::Joint => 0,
+        crate::division::Space::Cartesian => 1,
+    };
+    match kind {
+        LearnerKind::None => None,
+        LearnerKind::Fcmac => {
+            let mut f = Fcmac::new(FcmacConfig::paper(widest), tree.full, &init_scaled);
+            f.train(&patterns);
+            Some(Learner::Fcmac(f))
+        }
+        LearnerKind::Cmac => {
+            let mut c = Cmac::new(
+                CmacConfig::matching(FcmacConfig::paper(widest).cells),
+                tree.full,
+                &init_scaled,
+            );
+            c.train(&patterns);
+            Some(Learner::Cmac(c))
+        }
+    }
+}
