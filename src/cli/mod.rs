@@ -5,6 +5,7 @@ mod demo;
 mod identify;
 mod observability;
 mod register;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -36,6 +37,8 @@ enum Command {
     Register(register::Args),
     /// Joint commands that bring the calibrated arm to target positions.
     Compensate(compensate::Args),
+    /// Simulate a measurement session in a scenario's truth world and write its recording.
+    Simulate(simulate::Args),
 }
 
 /// Runs the command line and returns the process exit code.
@@ -48,6 +51,7 @@ pub fn main() -> ExitCode {
         Command::Identify(a) => identify::run(a),
         Command::Register(a) => register::run(a),
         Command::Compensate(a) => compensate::run(a),
+        Command::Simulate(a) => simulate::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
