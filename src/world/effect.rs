@@ -228,3 +228,27 @@ pub fn parse_effect(
         )),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::UnitQuaternion;
+
+    #[test]
+    fn contact_height_inverts_the_table_map() {
+        // A tilted, sheared, scaled table: the solved reading puts the panel at the asked height.
+        let mut map = TableMap::nominal(Vector3::new(-400.0, 170.0, -50.0));
+        map.axes[(0, 1)] = 1e-3;
+        map.axes[(2, 2)] = 1.0 / 1.0002;
+        map.registration = Isometry3::from_parts(
+            map.registration.translation,
+            UnitQuaternion::from_euler_angles(1e-3, -2e-3, 0.01),
+        );
+        let r = map.reading_at_height([310.0, 120.0], 123.0);
+        assert_eq!((r.x, r.y), (310.0, 120.0));
+        assert!((map.world(&r).z - 123.0).abs() < 1e-10);
+        // Nominal: world z = reading z − 50.
+        let n = TableMap::nominal(Vector3::new(-400.0, 170.0, -50.0));
+        assert!((n.reading_at_height([0.0, 0.0], 100.0).z - 150.0).abs() < 1e-12);
+    }
+}

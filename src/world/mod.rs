@@ -433,3 +433,31 @@ pub fn setup_rng(seed: u64, index: usize) -> ChaCha8Rng {
     key[16..].copy_from_slice(b"rigcal-scenario!");
     ChaCha8Rng::from_seed(key)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn history_keeps_the_last_nonzero_direction_per_joint() {
+        let mut h = MotionHistory::default();
+        h.record(&[0.0, 1.0], 0.0);
+        assert_eq!(h.direction, vec![0, 0]);
+        h.record(&[0.5, 1.0], 1.0);
+        assert_eq!(h.direction, vec![1, 0]);
+        h.record(&[0.5, 0.2], 2.0);
+        assert_eq!(h.direction, vec![1, -1]);
+        h.record(&[0.1, 0.2], 3.0);
+        assert_eq!(h.direction, vec![-1, -1]);
+        assert_eq!(h.moves, 4);
+        assert_eq!(h.t_s, 3.0);
+    }
+
+    #[test]
+    fn draws_depend_on_seed_seq_and_attempt_only() {
+        assert_eq!(Draws::new(1, 2, 3), Draws::new(1, 2, 3));
+        assert_ne!(Draws::new(1, 2, 3), Draws::new(1, 2, 4));
+        assert_ne!(Draws::new(1, 2, 3), Draws::new(1, 3, 3));
+        assert_ne!(Draws::new(2, 2, 3), Draws::new(1, 2, 3));
+    }
+}

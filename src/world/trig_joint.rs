@@ -165,3 +165,24 @@ pub fn parse(ctx: &ParseCtx<'_>, t: &toml::Table) -> Result<Arc<dyn Effect>, Sce
     };
     Ok(Arc::new(effect))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn eq6_by_hand() {
+        // Δq_1 = a_12 cos q_2 + b_13 sin q_3 with q_2 = 60°, q_3 = −30°: 0.02 · 0.5 − 0.04 · 0.5.
+        let mut t = TrigJointErrors {
+            a: Matrix3::zeros(),
+            b: Matrix3::zeros(),
+        };
+        t.a[(0, 1)] = 0.02;
+        t.b[(0, 2)] = 0.04;
+        t.b[(2, 0)] = 1.0;
+        let d = t.offsets(&[90f64.to_radians(), 60f64.to_radians(), (-30f64).to_radians()]);
+        assert!((d[0] - (0.01 - 0.02)).abs() < 1e-15);
+        assert!(d[1].abs() < 1e-15);
+        assert!((d[2] - 1.0).abs() < 1e-15);
+    }
+}
