@@ -91,7 +91,11 @@ fn compliance_deflects_by_gravity_torque_over_stiffness() {
     let c = compliance(4.0, k);
     // q2 = 0: the upper arm is horizontal (the tip of q = 0 is at z = 400 like the base);
     // a 4 kg mass 125 mm from the J2 axis carries 4 · 9.81 · 0.125 = 4.905 N·m.
-    for (q2, lever) in [(0.0, 1.0), (45.0, 45f64.to_radians().cos()), (-30.0, 30f64.to_radians().cos())] {
+    for (q2, lever) in [
+        (0.0, 1.0),
+        (45.0, 45f64.to_radians().cos()),
+        (-30.0, 30f64.to_radians().cos()),
+    ] {
         let q = deg(&[20.0, q2, -40.0, 0.0, 0.0]);
         let d = c.deflections(chain, &e, &q);
         assert_relative_eq!(d[0].1.abs(), 4.905 * lever / k, max_relative = 1e-9);
@@ -273,10 +277,17 @@ fn a_table_measurement_reads_the_true_tip_to_within_quantisation() {
     assert_eq!(r.missed, None, "{r:?}");
     let p = r.position.unwrap();
     let d = p - r.tip;
-    assert!(d.x.abs() <= 133.0 / 1024.0 + 1e-9 && d.y.abs() <= 80.0 / 512.0 + 1e-9, "{d}");
+    assert!(
+        d.x.abs() <= 133.0 / 1024.0 + 1e-9 && d.y.abs() <= 80.0 / 512.0 + 1e-9,
+        "{d}"
+    );
     assert!(d.z.abs() < 1e-9);
     let uv = r.panel_uv.unwrap();
-    assert_relative_eq!(r.table.unwrap().x - uv[0] + -400.0, p.x - uv[0], epsilon = 1e-9);
+    assert_relative_eq!(
+        r.table.unwrap().x - uv[0] + -400.0,
+        p.x - uv[0],
+        epsilon = 1e-9
+    );
     // Pin pointing up (q3 = 0, upper arm up): the panel cannot register it.
     let up = deg(&[0.0, 60.0, -10.0, 0.0, 0.0]);
     let miss = w.measure_at(&up, 1.0, 2, 0);
@@ -294,7 +305,11 @@ fn paper_scenario_has_the_papers_error_sizes() {
     let split = w.error_split(&fig6_path(101, w.chain().dof()));
     let (lo, hi) = split.total_range();
     let share = split.share();
-    println!("Fig. 6 path: {lo:.3}–{hi:.3} mm, mean {:.3} mm, non-geometric share {:.2} %", split.mean_total(), 100.0 * share);
+    println!(
+        "Fig. 6 path: {lo:.3}–{hi:.3} mm, mean {:.3} mm, non-geometric share {:.2} %",
+        split.mean_total(),
+        100.0 * share
+    );
     assert!(lo >= 0.4 && hi <= 1.2, "{lo}–{hi}");
     assert!((0.08..=0.10).contains(&share), "{share}");
     // The noisy variant: the mean noise vector length σ·√(8/π) is about 3 % of the mean error.
@@ -324,7 +339,11 @@ fn every_shipped_scenario_loads() {
 fn write_scenario(dir: &Path, body: &str, rig: &str) -> PathBuf {
     let rig = Path::new(env!("CARGO_MANIFEST_DIR")).join("rigs").join(rig);
     let path = dir.join("bad.toml");
-    std::fs::write(&path, format!("rig = {:?}\n{body}", rig.display().to_string())).unwrap();
+    std::fs::write(
+        &path,
+        format!("rig = {:?}\n{body}", rig.display().to_string()),
+    )
+    .unwrap();
     path
 }
 
@@ -363,7 +382,15 @@ fn malformed_scenarios_name_file_and_key() {
 fn motion_history_snapshot_resumes_the_same_draws() {
     let sc = Scenario::load(Path::new("sim/rig-realistic.toml"), None).unwrap();
     let poses: Vec<Vec<f64>> = (0..10)
-        .map(|k| deg(&[-20.0 + 4.0 * k as f64, 30.0 + (k % 3) as f64, -90.0 + k as f64, 0.0, 0.0]))
+        .map(|k| {
+            deg(&[
+                -20.0 + 4.0 * k as f64,
+                30.0 + (k % 3) as f64,
+                -90.0 + k as f64,
+                0.0,
+                0.0,
+            ])
+        })
         .collect();
     let mut whole = sc.world();
     let all: Vec<_> = poses
@@ -393,7 +420,11 @@ fn simulate(args: &[&str]) {
         .args(args)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[test]
@@ -402,14 +433,25 @@ fn simulate_is_deterministic_and_writes_table_columns() {
     let run = |name: &str| {
         let out = dir.path().join(name);
         simulate(&[
-            "--rig", "rigs/rv-m2.toml", "--scenario", "sim/rig-realistic.toml", "--random", "300",
-            "--seed", "5", "--out", out.to_str().unwrap(),
+            "--rig",
+            "rigs/rv-m2.toml",
+            "--scenario",
+            "sim/rig-realistic.toml",
+            "--random",
+            "300",
+            "--seed",
+            "5",
+            "--out",
+            out.to_str().unwrap(),
         ]);
         out
     };
     let (a, b) = (run("a"), run("b"));
     for f in ["measurements.csv", "session.toml"] {
-        assert_eq!(std::fs::read(a.join(f)).unwrap(), std::fs::read(b.join(f)).unwrap());
+        assert_eq!(
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap()
+        );
     }
     let rig = rig("rv-m2");
     let rec = Recording::read(&a, rig.chain.joints()).unwrap();
@@ -425,11 +467,21 @@ fn simulate_is_deterministic_and_writes_table_columns() {
 
     // A poses file on the ideal rig: rows in the file's order.
     let poses = dir.path().join("poses.csv");
-    std::fs::write(&poses, "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg\n60,60,-35,0,0\n125,90,-10,0,0\n").unwrap();
+    std::fs::write(
+        &poses,
+        "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg\n60,60,-35,0,0\n125,90,-10,0,0\n",
+    )
+    .unwrap();
     let out = dir.path().join("paper");
     simulate(&[
-        "--rig", "rigs/rv-m2-ideal.toml", "--scenario", "sim/paper-sim.toml", "--poses",
-        poses.to_str().unwrap(), "--out", out.to_str().unwrap(),
+        "--rig",
+        "rigs/rv-m2-ideal.toml",
+        "--scenario",
+        "sim/paper-sim.toml",
+        "--poses",
+        poses.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
     ]);
     let rec = Recording::read(&out, rig.chain.joints()).unwrap();
     assert_eq!(rec.rows.len(), 2);

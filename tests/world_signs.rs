@@ -60,6 +60,9 @@ fn search_paper_sign_patterns() {
                 format!("{} = {v}", layout.name(id))
             })
             .collect();
-        println!("pattern {pattern:#06x}: {lo:.3}–{hi:.3} mm: {{ {} }}", names.join(", "));
+        println!(
+            "pattern {pattern:#06x}: {lo:.3}–{hi:.3} mm: {{ {} }}",
+            names.join(", ")
+        );
     }
 }

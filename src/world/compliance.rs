@@ -59,7 +59,12 @@ impl JointCompliance {
     }
 
     /// Deflection (rad) of every compliant joint at `q`.
-    pub fn deflections(&self, chain: &SerialChain, e: &ErrorParams, q: &[f64]) -> Vec<(usize, f64)> {
+    pub fn deflections(
+        &self,
+        chain: &SerialChain,
+        e: &ErrorParams,
+        q: &[f64],
+    ) -> Vec<(usize, f64)> {
         self.stiffness
             .iter()
             .map(|&(j, k)| (j, self.gravity_torque(chain, e, q, j) / k))

@@ -202,7 +202,10 @@ pub const REGISTRY: &[(&str, ParseFn)] = &[
     ("thermal_drift", super::drift::parse),
     ("table_scale", super::table::parse_scale),
     ("table_squareness", super::table::parse_squareness),
-    ("registration_offset", super::table::parse_registration_offset),
+    (
+        "registration_offset",
+        super::table::parse_registration_offset,
+    ),
 ];
 
 /// Parses one `[[effects]]` entry by its `kind`.
@@ -212,10 +215,7 @@ pub fn parse_effect(
 ) -> Result<Arc<dyn Effect>, ScenarioError> {
     let kinds: Vec<&str> = REGISTRY.iter().map(|(k, _)| *k).collect();
     let Some(kind) = table.get("kind") else {
-        return Err(ctx.invalid(
-            ".kind",
-            format!("missing; one of {}", kinds.join(", ")),
-        ));
+        return Err(ctx.invalid(".kind", format!("missing; one of {}", kinds.join(", "))));
     };
     let Some(kind) = kind.as_str() else {
         return Err(ctx.invalid(".kind", "must be a string"));

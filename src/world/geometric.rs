@@ -70,7 +70,7 @@ pub fn paper_geometric_errors(
 /// The identifiable parameters of a rig (layout indices, basis order), from 60 random poses.
 pub fn identifiable(rig: &Rig) -> Vec<usize> {
     // Fixed poses: the basis does not depend on them, and a fixed draw keeps scenarios stable.
-    let mut rng = ChaCha8Rng::seed_from_u64(0x5eed_000);
+    let mut rng = ChaCha8Rng::seed_from_u64(0x05ee_d000);
     let poses = random_poses(rig.chain.joints(), rig.held(), 60, &mut rng);
     analyse(&rig.chain, &poses, &candidate_order(rig)).basis
 }

@@ -311,7 +311,12 @@ impl World {
 
     /// What the panel reports when the table reads `reading` and the pin (tool pose `tool`) has
     /// its tip at `tip`: counts, or why there is no valid touch. An ideal instrument never misses.
-    pub fn touch(&self, tool: &Isometry3<f64>, tip: &Vector3<f64>, reading: &Vector3<f64>) -> Touch {
+    pub fn touch(
+        &self,
+        tool: &Isometry3<f64>,
+        tip: &Vector3<f64>,
+        reading: &Vector3<f64>,
+    ) -> Touch {
         let (Instrument::TablePanel(tp), Some(map)) = (&self.instrument, &self.table) else {
             return Touch::Contact {
                 counts: [0, 0],
@@ -397,7 +402,8 @@ impl World {
         for (k, q) in poses.iter().enumerate() {
             let seq = first_seq + k as u64;
             let t = k as f64 * self.settings.seconds_per_point;
-            rec.rows.push(w.measure_at(q, t, seq, 0).to_measurement(seq, t));
+            rec.rows
+                .push(w.measure_at(q, t, seq, 0).to_measurement(seq, t));
         }
         rec
     }

@@ -42,7 +42,11 @@ impl ErrorSplit {
     /// Smallest and largest total error (mm).
     pub fn total_range(&self) -> (f64, f64) {
         let lo = self.total_mm.iter().copied().fold(f64::INFINITY, f64::min);
-        let hi = self.total_mm.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let hi = self
+            .total_mm
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
         (lo, hi)
     }
 

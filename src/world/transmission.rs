@@ -84,7 +84,9 @@ pub fn parse(ctx: &ParseCtx<'_>, t: &toml::Table) -> Result<Arc<dyn Effect>, Sce
         }
         harmonics.push(Harmonic {
             order: h.order as u32,
-            amplitude: ctx.finite(&key("amplitude_deg"), h.amplitude_deg)?.to_radians(),
+            amplitude: ctx
+                .finite(&key("amplitude_deg"), h.amplitude_deg)?
+                .to_radians(),
             phase: ctx.finite(&key("phase_deg"), h.phase_deg)?.to_radians(),
         });
     }

@@ -32,8 +32,8 @@ impl TrigJointErrors {
     pub fn offsets(&self, q: &[f64]) -> [f64; 3] {
         let mut d = [0.0; 3];
         for (i, di) in d.iter_mut().enumerate() {
-            for j in 0..3 {
-                *di += self.a[(i, j)] * q[j].cos() + self.b[(i, j)] * q[j].sin();
+            for (j, qj) in q.iter().take(3).enumerate() {
+                *di += self.a[(i, j)] * qj.cos() + self.b[(i, j)] * qj.sin();
             }
         }
         d
@@ -180,7 +180,11 @@ mod tests {
         t.a[(0, 1)] = 0.02;
         t.b[(0, 2)] = 0.04;
         t.b[(2, 0)] = 1.0;
-        let d = t.offsets(&[90f64.to_radians(), 60f64.to_radians(), (-30f64).to_radians()]);
+        let d = t.offsets(&[
+            90f64.to_radians(),
+            60f64.to_radians(),
+            (-30f64).to_radians(),
+        ]);
         assert!((d[0] - (0.01 - 0.02)).abs() < 1e-15);
         assert!(d[1].abs() < 1e-15);
         assert!((d[2] - 1.0).abs() < 1e-15);
