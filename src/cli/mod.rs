@@ -6,6 +6,7 @@ mod demo;
 mod identify;
 mod observability;
 mod register;
+mod simulate;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -40,6 +41,8 @@ enum Command {
     /// The variable D-H parameter model: recursive workspace division, CEPs per region and an
     /// FCMAC (or CMAC) that generalises them.
     Calibrate(calibrate::Args),
+    /// Simulate a measurement session in a scenario's truth world and write its recording.
+    Simulate(simulate::Args),
 }
 
 /// Runs the command line and returns the process exit code.
@@ -53,6 +56,7 @@ pub fn main() -> ExitCode {
         Command::Register(a) => register::run(a),
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Simulate(a) => simulate::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
