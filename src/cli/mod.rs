@@ -5,6 +5,7 @@ mod demo;
 mod identify;
 mod observability;
 mod register;
+mod sim_device;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -36,6 +37,8 @@ enum Command {
     Register(register::Args),
     /// Joint commands that bring the calibrated arm to target positions.
     Compensate(compensate::Args),
+    /// Serve one device's emulator on a pseudo-terminal (prints the port path).
+    SimDevice(sim_device::Args),
 }
 
 /// Runs the command line and returns the process exit code.
@@ -48,6 +51,7 @@ pub fn main() -> ExitCode {
         Command::Identify(a) => identify::run(a),
         Command::Register(a) => register::run(a),
         Command::Compensate(a) => compensate::run(a),
+        Command::SimDevice(a) => sim_device::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -245,11 +245,51 @@ impl<B: CanBus> CanOpenTable<B> {
         }
     }
 
+    /// Reads the three actual positions with the three SDO requests on the bus at once (one
+    /// per drive), so every axis is read one bus latency after the call.
     fn read_positions(&mut self) -> Result<[f64; 3], DeviceError> {
-        let mut p = [0.0; 3];
-        for (k, slot) in p.iter_mut().enumerate() {
-            *slot = f64::from(self.read(k, od::POSITION_ACTUAL)?.to_i32()) / self.cfg.counts_per_mm[k];
+        for k in 0..3 {
+            let req = SdoRequest::Upload { index: od::POSITION_ACTUAL, sub: 0 };
+            self.bus.send(&req.encode(self.nodes[k])).map_err(Self::transport)?;
         }
+        let start = self.clock.now();
+        let deadline = start + Duration::from_millis(self.cfg.sdo_timeout_ms);
+        let mut got: [Option<f64>; 3] = [None; 3];
+        while got.iter().any(Option::is_none) {
+            let remaining = deadline.saturating_sub(self.clock.now());
+            let frame = match self.bus.recv(remaining) {
+                Ok(f) => f,
+                Err(TransportError::Timeout { .. }) => {
+                    return Err(self.timeout(
+                        format!("the position reads (0x6064) of nodes {:?}, got {got:?}", self.cfg.node_ids),
+                        self.clock.now().saturating_sub(start),
+                    ))
+                }
+                Err(e) => return Err(Self::transport(e)),
+            };
+            let Some((node, resp)) = self.observe(&frame) else { continue };
+            let Some(k) = self.nodes.iter().position(|n| *n == node) else { continue };
+            if resp.index() != od::POSITION_ACTUAL {
+                continue;
+            }
+            match resp {
+                SdoResponse::UploadData { data, .. } => {
+                    got[k] = Some(f64::from(data.to_i32()) / self.cfg.counts_per_mm[k]);
+                }
+                SdoResponse::Abort { code, .. } => {
+                    return Err(DeviceError::SdoAbort {
+                        node: node.get(),
+                        access: "read",
+                        index: od::POSITION_ACTUAL,
+                        sub: 0,
+                        code,
+                        description: code.description(),
+                    })
+                }
+                SdoResponse::DownloadAck { .. } => {}
+            }
+        }
+        let p = [got[0].unwrap_or(f64::NAN), got[1].unwrap_or(f64::NAN), got[2].unwrap_or(f64::NAN)];
         self.last_pos = Some(p);
         Ok(p)
     }
