@@ -313,3 +313,46 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
     let s = d.panel.stats();
     assert!(s.bad_checksum >= 1 && s.discarded_bytes >= 4, "{s:?}");
 }
+
+#[test]
+fn the_rig_file_backend_opens_the_simulated_devices_it_names() {
+    let rig = rig();
+    let mut d = open_devices(&rig, Backend::RigFile).unwrap();
+    assert!(d.clock.is_virtual(), "all devices are `sim` in rv-m2.toml");
+    assert!(d.sim.is_some());
+    d.arm.home(T).unwrap();
+    d.table.enable(T).unwrap();
+    assert_eq!(d.panel.stats(), rigcal::devices::PanelStats::default());
+}
+
+#[test]
+fn threaded_emulators_serve_canopen_over_the_simulated_bus_and_movemaster_over_a_pipe() {
+    use rigcal::devices::arm_movemaster::MovemasterArm;
+    use rigcal::devices::clock::RealClock;
+    use rigcal::devices::emulators::{serve_bytes, serve_frames};
+    use rigcal::devices::factory::sim_emulators;
+    use rigcal::devices::table_canopen::CanOpenTable;
+    use rigcal::devices::{Arm, Table};
+    use rigcal::transports::{PipeTransport, SimBus};
+    let rig = rig();
+    let mut cfg = rig.devices.clone().unwrap();
+    cfg.arm.sim_joint_speed_deg_s = 2000.0;
+    cfg.table.profile_velocity_mm_s = 500.0;
+    cfg.table.profile_acceleration_mm_s2 = 5000.0;
+    cfg.table.profile_deceleration_mm_s2 = 5000.0;
+    let mut s = SimSetup::nominal(&rig);
+    s.clock = RealClock::shared();
+    let emus = sim_emulators(&rig, &cfg, &s).unwrap();
+    let bus = SimBus::new();
+    let _table = serve_frames(emus.table, bus.endpoint(), s.clock.clone());
+    let (a, b) = PipeTransport::pair();
+    let _arm = serve_bytes(emus.arm, a, s.clock.clone());
+    let mut table = CanOpenTable::new(bus.endpoint(), &cfg.table, s.clock.clone()).unwrap();
+    table.enable(T).unwrap();
+    table.start_move([300.0, 200.0, 5.0], T).unwrap();
+    let p = table.wait_reached(T).unwrap();
+    assert!((p[2] - 5.0).abs() < 0.001, "{p:?}");
+    let mut arm = MovemasterArm::new(b, rig.chain.clone(), &cfg.arm, s.clock.clone()).unwrap();
+    arm.home(T).unwrap();
+    arm.move_to(&deg(&[1.0, 85.0, -85.0, 0.0, 0.0]), T).unwrap();
+}
