@@ -72,7 +72,9 @@ pub enum Unmeasurable {
         joint: usize,
     },
     /// The pin meets the panel too flat (or from below).
-    #[error("the pin meets the panel at {angle_deg:.1}°, less than the {min_deg:.0}° a contact needs")]
+    #[error(
+        "the pin meets the panel at {angle_deg:.1}°, less than the {min_deg:.0}° a contact needs"
+    )]
     PinAngle {
         /// Angle between pin and panel plane (deg; negative when pointing up).
         angle_deg: f64,
@@ -80,7 +82,9 @@ pub enum Unmeasurable {
         min_deg: f64,
     },
     /// The table cannot bring the panel there.
-    #[error("table {axis} would need {position_mm:.1} mm, outside its travel 0..{travel_mm:.0} mm")]
+    #[error(
+        "table {axis} would need {position_mm:.1} mm, outside its travel 0..{travel_mm:.0} mm"
+    )]
     TableTravel {
         /// Axis.
         axis: char,
@@ -599,7 +603,11 @@ impl Validator {
         match (w.r_mm, w.azimuth_deg, w.elevation_deg) {
             (None, None, None) => Ok(None),
             (Some(r), Some(a), Some(e)) => {
-                for (key, v) in [("workspace.r_mm", r), ("workspace.azimuth_deg", a), ("workspace.elevation_deg", e)] {
+                for (key, v) in [
+                    ("workspace.r_mm", r),
+                    ("workspace.azimuth_deg", a),
+                    ("workspace.elevation_deg", e),
+                ] {
                     if !(v[0].is_finite() && v[1].is_finite() && v[0] < v[1]) {
                         return Err(self.invalid(key, "needs finite [min, max] with min < max"));
                     }
@@ -607,9 +615,16 @@ impl Validator {
                 if r[0] < 0.0 {
                     return Err(self.invalid("workspace.r_mm", "must not be negative"));
                 }
-                Ok(Some([r, [a[0].to_radians(), a[1].to_radians()], [e[0].to_radians(), e[1].to_radians()]]))
+                Ok(Some([
+                    r,
+                    [a[0].to_radians(), a[1].to_radians()],
+                    [e[0].to_radians(), e[1].to_radians()],
+                ]))
             }
-            _ => Err(self.invalid("workspace", "give all of r_mm, azimuth_deg and elevation_deg, or none")),
+            _ => Err(self.invalid(
+                "workspace",
+                "give all of r_mm, azimuth_deg and elevation_deg, or none",
+            )),
         }
     }
 

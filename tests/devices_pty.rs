@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use rigcal::devices::arm_movemaster::MovemasterArm;
-use rigcal::devices::clock::{Clock, RealClock};
+use rigcal::devices::clock::RealClock;
 use rigcal::devices::config::DevicesConfig;
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::emulators::{serve_bytes, Profile, SlcanAdapter};
@@ -63,18 +63,28 @@ fn arm_over_a_pseudo_terminal_homes_moves_reads_back_and_recovers_from_error_mod
     let faults = emus.arm.faults();
     let (device_end, host_end) = pty_pair();
     let _served = serve_bytes(emus.arm, device_end, s.clock.clone());
-    let mut arm = MovemasterArm::new(host_end, rig.chain.clone(), &cfg.arm, s.clock.clone()).unwrap();
+    let mut arm =
+        MovemasterArm::new(host_end, rig.chain.clone(), &cfg.arm, s.clock.clone()).unwrap();
 
     assert_eq!(arm.home(T).unwrap(), deg(&[0.0, 90.0, -90.0, 0.0, 0.0]));
-    let q = arm.move_to(&deg(&[12.34, 70.0, -45.66, 0.0, 0.0]), T).unwrap();
+    let q = arm
+        .move_to(&deg(&[12.34, 70.0, -45.66, 0.0, 0.0]), T)
+        .unwrap();
     assert!((q[0].to_degrees() - 12.3).abs() < 1e-9 && (q[2].to_degrees() + 45.7).abs() < 1e-9);
     let pose = arm.where_pose(T).unwrap();
-    let p = rig.chain.position(&q, &ErrorParams::zeros(rig.chain.layout()));
+    let p = rig
+        .chain
+        .position(&q, &ErrorParams::zeros(rig.chain.layout()));
     assert!((nalgebra::Vector3::from(pose.xyz_mm) - p).norm() < 0.1);
 
     faults.lock().unwrap().error_on_next_move = Some(2);
-    let e = arm.move_to(&deg(&[0.0, 70.0, -45.0, 0.0, 0.0]), T).unwrap_err();
-    assert!(matches!(&e, DeviceError::ArmErrorMode { code: 2, command, .. } if command.starts_with("MJ")), "{e}");
+    let e = arm
+        .move_to(&deg(&[0.0, 70.0, -45.0, 0.0, 0.0]), T)
+        .unwrap_err();
+    assert!(
+        matches!(&e, DeviceError::ArmErrorMode { code: 2, command, .. } if command.starts_with("MJ")),
+        "{e}"
+    );
     arm.reset(T).unwrap();
     arm.move_to(&deg(&[0.0, 70.0, -45.0, 0.0, 0.0]), T).unwrap();
 
@@ -83,7 +93,10 @@ fn arm_over_a_pseudo_terminal_homes_moves_reads_back_and_recovers_from_error_mod
     let e = arm.status(Duration::from_millis(150)).unwrap_err();
     let waited = t0.elapsed();
     assert_eq!(e.kind(), DeviceErrorKind::Timeout, "{e}");
-    assert!(waited >= Duration::from_millis(150) && waited < Duration::from_secs(1), "{waited:?}");
+    assert!(
+        waited >= Duration::from_millis(150) && waited < Duration::from_secs(1),
+        "{waited:?}"
+    );
     assert_eq!(arm.status(T).unwrap(), rigcal::devices::ArmStatus::Ok);
 }
 
@@ -91,30 +104,47 @@ fn arm_over_a_pseudo_terminal_homes_moves_reads_back_and_recovers_from_error_mod
 fn panel_over_a_pseudo_terminal_reports_touches_drops_garbage_and_times_out_on_a_missed_touch() {
     let _g = pty_lock();
     let (rig, cfg, s) = setup();
-    let Instrument::TablePanel(tp) = &rig.instrument else { panic!() };
+    let Instrument::TablePanel(tp) = &rig.instrument else {
+        panic!()
+    };
     let q = deg(&[20.0, 45.0, -100.0, 0.0, 0.0]);
     rig.measurable(&q).unwrap();
     s.physics.lock().unwrap().arm_commanded(&q, Duration::ZERO);
-    let tip = rig.chain.position(&q, &ErrorParams::zeros(rig.chain.layout()));
+    let tip = rig
+        .chain
+        .position(&q, &ErrorParams::zeros(rig.chain.layout()));
     let emus = sim_emulators(&rig, &cfg, &s).unwrap();
     let faults = emus.panel.faults();
     let truth = Arc::clone(&emus.table_truth);
     let table_at_tip = tip - tp.table_to_world_mm;
     let (device_end, host_end) = pty_pair();
     let _served = serve_bytes(emus.panel, device_end, s.clock.clone());
-    let mut panel = PenMountPanel::new(host_end, tp.panel_size_mm, tp.panel_counts, &cfg.panel, s.clock.clone());
+    let mut panel = PenMountPanel::new(
+        host_end,
+        tp.panel_size_mm,
+        tp.panel_counts,
+        &cfg.panel,
+        s.clock.clone(),
+    );
 
     let rise = |from: f64, to: f64| {
         let now = s.clock.now();
         let x = table_at_tip.x - 20.0;
         let y = table_at_tip.y + 10.0;
         let mut t = truth.lock().unwrap();
-        t.axes = [Profile::still(x), Profile::still(y), Profile::new(now, from, to, 50.0, 1000.0, 1000.0)];
+        t.axes = [
+            Profile::still(x),
+            Profile::still(y),
+            Profile::new(now, from, to, 50.0, 1000.0, 1000.0),
+        ];
     };
     faults.lock().unwrap().garbage_before_next = vec![0x12, 0x30, 0x99];
     rise(table_at_tip.z - 2.0, table_at_tip.z + 0.5);
     let touch = panel.wait_touch(T).unwrap();
-    assert!((touch.u_mm - 20.0).abs() < 0.14 && (touch.v_mm + 10.0).abs() < 0.16, "{touch:?}");
+    assert!(
+        (touch.u_mm - 20.0).abs() < 0.14 && (touch.v_mm + 10.0).abs() < 0.16,
+        "{touch:?}"
+    );
     assert!(panel.stats().discarded_bytes >= 3, "{:?}", panel.stats());
 
     // Away, then a missed touch: the wait ends in a timeout at the time asked.
@@ -127,7 +157,10 @@ fn panel_over_a_pseudo_terminal_reports_touches_drops_garbage_and_times_out_on_a
     let e = panel.wait_touch(Duration::from_millis(200)).unwrap_err();
     let waited = t0.elapsed();
     assert_eq!(e.kind(), DeviceErrorKind::Timeout, "{e}");
-    assert!(waited >= Duration::from_millis(200) && waited < Duration::from_secs(1), "{waited:?}");
+    assert!(
+        waited >= Duration::from_millis(200) && waited < Duration::from_secs(1),
+        "{waited:?}"
+    );
 }
 
 #[test]
@@ -157,7 +190,17 @@ fn table_over_slcan_on_a_pseudo_terminal_moves_faults_and_resets() {
     });
     table.start_move([start[0] + 50.0, p[1], p[2]], T).unwrap();
     let e = table.wait_reached(T).unwrap_err();
-    assert!(matches!(e, DeviceError::DriveFault { axis: 'x', emcy_code: Some(0x2310), .. }), "{e}");
+    assert!(
+        matches!(
+            e,
+            DeviceError::DriveFault {
+                axis: 'x',
+                emcy_code: Some(0x2310),
+                ..
+            }
+        ),
+        "{e}"
+    );
     table.fault_reset(T).unwrap();
     table.start_move(target, T).unwrap();
     table.wait_reached(T).unwrap();
@@ -167,5 +210,8 @@ fn table_over_slcan_on_a_pseudo_terminal_moves_faults_and_resets() {
     let e = table.position(T).unwrap_err();
     let waited = t0.elapsed();
     assert_eq!(e.kind(), DeviceErrorKind::Timeout, "{e}");
-    assert!(waited >= Duration::from_millis(200) && waited < Duration::from_secs(1), "{waited:?}");
+    assert!(
+        waited >= Duration::from_millis(200) && waited < Duration::from_secs(1),
+        "{waited:?}"
+    );
 }

@@ -51,7 +51,10 @@ fn arm_homes_moves_and_reports_the_rounded_commanded_joints() {
     // (10.1, 80.1, -60.0) — one joint, so DJ — then (10.1, 80.2, -60.1).
     assert_eq!(log[4], "MJ +10.0,-9.9,+30.0,+0.0,+0.0");
     assert!(log.contains(&"DJ 1,+0.1".to_string()), "{log:?}");
-    assert!(log.contains(&"MJ +0.0,+0.1,-0.1,+0.0,+0.0".to_string()), "{log:?}");
+    assert!(
+        log.contains(&"MJ +0.0,+0.1,-0.1,+0.0,+0.0".to_string()),
+        "{log:?}"
+    );
     // Never pipelined: every motion command is followed by ER before anything else.
     for w in log.windows(2) {
         if w[0].starts_with("MJ") || w[0].starts_with("DJ") || w[0] == "NT" {
@@ -60,7 +63,9 @@ fn arm_homes_moves_and_reports_the_rounded_commanded_joints() {
     }
     let pose = d.arm.where_pose(T).unwrap();
     let q = d.arm.commanded().unwrap();
-    let p = rig.chain.position(&q, &ErrorParams::zeros(rig.chain.layout()));
+    let p = rig
+        .chain
+        .position(&q, &ErrorParams::zeros(rig.chain.layout()));
     assert!((nalgebra::Vector3::from(pose.xyz_mm) - p).norm() < 0.1);
 }
 
@@ -72,7 +77,10 @@ fn arm_error_mode_is_reported_with_its_command_and_reset_only_when_safe() {
     d.arm.home(T).unwrap();
     let before = d.arm.commanded();
     faults.lock().unwrap().error_on_next_move = Some(2);
-    let e = d.arm.move_to(&deg(&[5.0, 80.0, -60.0, 0.0, 0.0]), T).unwrap_err();
+    let e = d
+        .arm
+        .move_to(&deg(&[5.0, 80.0, -60.0, 0.0, 0.0]), T)
+        .unwrap_err();
     match &e {
         DeviceError::ArmErrorMode { command, code, .. } => {
             assert_eq!(*code, 2);
@@ -82,17 +90,34 @@ fn arm_error_mode_is_reported_with_its_command_and_reset_only_when_safe() {
     }
     assert_eq!(e.kind(), DeviceErrorKind::DeviceFault);
     assert_eq!(d.arm.commanded(), before);
-    assert_eq!(d.arm.status(T).unwrap(), rigcal::devices::ArmStatus::PositionError);
+    assert_eq!(
+        d.arm.status(T).unwrap(),
+        rigcal::devices::ArmStatus::PositionError
+    );
     d.arm.reset(T).unwrap();
     assert_eq!(d.arm.status(T).unwrap(), rigcal::devices::ArmStatus::Ok);
-    d.arm.move_to(&deg(&[5.0, 80.0, -60.0, 0.0, 0.0]), T).unwrap();
+    d.arm
+        .move_to(&deg(&[5.0, 80.0, -60.0, 0.0, 0.0]), T)
+        .unwrap();
 
     faults.lock().unwrap().error_on_next_move = Some(1);
-    let e = d.arm.move_to(&deg(&[6.0, 80.0, -60.0, 0.0, 0.0]), T).unwrap_err();
-    assert!(matches!(e, DeviceError::ArmErrorMode { code: 1, .. }), "{e}");
+    let e = d
+        .arm
+        .move_to(&deg(&[6.0, 80.0, -60.0, 0.0, 0.0]), T)
+        .unwrap_err();
+    assert!(
+        matches!(e, DeviceError::ArmErrorMode { code: 1, .. }),
+        "{e}"
+    );
     assert!(d.arm.commanded().is_none());
-    assert!(matches!(d.arm.reset(T), Err(DeviceError::ResetNotSafe { .. })));
-    let e = d.arm.move_to(&deg(&[6.0, 80.0, -60.0, 0.0, 0.0]), T).unwrap_err();
+    assert!(matches!(
+        d.arm.reset(T),
+        Err(DeviceError::ResetNotSafe { .. })
+    ));
+    let e = d
+        .arm
+        .move_to(&deg(&[6.0, 80.0, -60.0, 0.0, 0.0]), T)
+        .unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::NotReady);
 }
 
@@ -104,11 +129,20 @@ fn arm_waits_time_out_and_garbled_replies_are_protocol_errors() {
     d.arm.home(T).unwrap();
     faults.lock().unwrap().drop_replies = 1;
     let t0 = d.clock.now();
-    let e = d.arm.move_to(&deg(&[1.0, 90.0, -90.0, 0.0, 0.0]), Duration::from_millis(500)).unwrap_err();
+    let e = d
+        .arm
+        .move_to(
+            &deg(&[1.0, 90.0, -90.0, 0.0, 0.0]),
+            Duration::from_millis(500),
+        )
+        .unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Timeout, "{e}");
     assert!(e.is_retryable());
     let waited = d.clock.now() - t0;
-    assert!(waited >= Duration::from_millis(500) && waited < Duration::from_millis(600), "{waited:?}");
+    assert!(
+        waited >= Duration::from_millis(500) && waited < Duration::from_millis(600),
+        "{waited:?}"
+    );
     faults.lock().unwrap().garble_replies = 1;
     let e = d.arm.status(T).unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Protocol, "{e}");
@@ -124,7 +158,10 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
     d.table.enable(T).unwrap();
     let lines = sim.arm.as_ref().unwrap().lock().unwrap().received.len();
     let frames = sim.table.as_ref().unwrap().lock().unwrap().frames_received;
-    let e = d.arm.move_to(&deg(&[0.0, 120.0, -90.0, 0.0, 0.0]), T).unwrap_err();
+    let e = d
+        .arm
+        .move_to(&deg(&[0.0, 120.0, -90.0, 0.0, 0.0]), T)
+        .unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Refused, "{e}");
     assert!(e.to_string().contains("J2"), "{e}");
     let e = d.table.start_move([100.0, 600.0, 10.0], T).unwrap_err();
@@ -135,8 +172,14 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
     let frames = frames.max(sim.table.as_ref().unwrap().lock().unwrap().frames_received);
     let e = d.table.start_move([100.0, 100.0, 150.0], T).unwrap_err();
     assert!(e.to_string().contains("ascend"), "{e}");
-    assert_eq!(sim.arm.as_ref().unwrap().lock().unwrap().received.len(), lines);
-    assert_eq!(sim.table.as_ref().unwrap().lock().unwrap().frames_received, frames);
+    assert_eq!(
+        sim.arm.as_ref().unwrap().lock().unwrap().received.len(),
+        lines
+    );
+    assert_eq!(
+        sim.table.as_ref().unwrap().lock().unwrap().frames_received,
+        frames
+    );
     d.table.begin_pass();
     d.table.start_move([100.0, 100.0, 150.0], T).unwrap();
 }
@@ -173,7 +216,12 @@ fn drive_fault_stops_the_move_with_its_emcy_and_fault_reset_recovers() {
     d.table.start_move([400.0, 280.0, 200.0], T).unwrap();
     let e = d.table.wait_reached(T).unwrap_err();
     match &e {
-        DeviceError::DriveFault { axis, emcy_code, target_mm, .. } => {
+        DeviceError::DriveFault {
+            axis,
+            emcy_code,
+            target_mm,
+            ..
+        } => {
             assert_eq!(*axis, 'z');
             assert_eq!(*emcy_code, Some(0x8611));
             assert_eq!(*target_mm, Some(200.0));
@@ -202,7 +250,12 @@ fn a_silent_drive_is_reported_after_three_heartbeat_periods_and_sdo_timeouts_fir
     d.clock.sleep(Duration::from_millis(400));
     let e = d.table.start_move([400.0, 280.0, 12.0], T).unwrap_err();
     match e {
-        DeviceError::HeartbeatLost { axis, silent_for, limit, .. } => {
+        DeviceError::HeartbeatLost {
+            axis,
+            silent_for,
+            limit,
+            ..
+        } => {
             assert_eq!(axis, 'y');
             assert_eq!(limit, Duration::from_millis(300));
             assert!(silent_for > limit);
@@ -214,18 +267,25 @@ fn a_silent_drive_is_reported_after_three_heartbeat_periods_and_sdo_timeouts_fir
     let e = d.table.position(T).unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Timeout, "{e}");
     let waited = d.clock.now() - t0;
-    assert!(waited >= Duration::from_millis(200) && waited < Duration::from_millis(250), "{waited:?}");
+    assert!(
+        waited >= Duration::from_millis(200) && waited < Duration::from_millis(250),
+        "{waited:?}"
+    );
 }
 
 /// A pose the rig can measure, its true tip, and the table position that brings the panel
 /// centre to (tip − offset) at contact.
 fn contact_setup(rig: &Rig) -> (Vec<f64>, nalgebra::Vector3<f64>, nalgebra::Vector3<f64>) {
-    let Instrument::TablePanel(tp) = &rig.instrument else { panic!() };
+    let Instrument::TablePanel(tp) = &rig.instrument else {
+        panic!()
+    };
     for q2 in (0..=90).step_by(5) {
         for q3 in (-120..=0).rev().step_by(5) {
             let q = deg(&[20.0, f64::from(q2), f64::from(q3), 0.0, 0.0]);
             if rig.measurable(&q).is_ok() {
-                let tip = rig.chain.position(&q, &ErrorParams::zeros(rig.chain.layout()));
+                let tip = rig
+                    .chain
+                    .position(&q, &ErrorParams::zeros(rig.chain.layout()));
                 let table = tip - tp.table_to_world_mm;
                 if table.z > 5.0 {
                     return (q, tip, table);
@@ -244,13 +304,19 @@ fn contact_is_measured_within_the_overshoot_rule() {
     d.arm.home(T).unwrap();
     let (q, _tip, table_at_tip) = contact_setup(&rig);
     let q = d.arm.move_to(&q, T).unwrap();
-    let tip = rig.chain.position(&q, &ErrorParams::zeros(rig.chain.layout()));
-    let Instrument::TablePanel(tp) = &rig.instrument else { panic!() };
+    let tip = rig
+        .chain
+        .position(&q, &ErrorParams::zeros(rig.chain.layout()));
+    let Instrument::TablePanel(tp) = &rig.instrument else {
+        panic!()
+    };
     let centre_xy = [table_at_tip.x - 10.3, table_at_tip.y + 5.2];
     let zc = tip.z - tp.table_to_world_mm.z;
     d.table.enable(T).unwrap();
     d.table.begin_pass();
-    d.table.start_move([centre_xy[0], centre_xy[1], zc - 1.0], T).unwrap();
+    d.table
+        .start_move([centre_xy[0], centre_xy[1], zc - 1.0], T)
+        .unwrap();
     d.table.wait_reached(T).unwrap();
     let v = approach_speed(d.panel.latency(), d.table.latency(), 0.005);
     let c = measure_contact(
@@ -264,13 +330,33 @@ fn contact_is_measured_within_the_overshoot_rule() {
     )
     .unwrap();
     let overshoot = c.table_mm[2] - zc;
-    assert!((0.0..=0.005 + 1e-6).contains(&overshoot), "overshoot {overshoot} mm at {v} mm/s");
-    assert!(overshoot > 0.004, "the emulator models the latency: {overshoot}");
-    let true_contact_z = sim.panel.unwrap().lock().unwrap().last_contact_table_z.unwrap();
+    assert!(
+        (0.0..=0.005 + 1e-6).contains(&overshoot),
+        "overshoot {overshoot} mm at {v} mm/s"
+    );
+    assert!(
+        overshoot > 0.004,
+        "the emulator models the latency: {overshoot}"
+    );
+    let true_contact_z = sim
+        .panel
+        .unwrap()
+        .lock()
+        .unwrap()
+        .last_contact_table_z
+        .unwrap();
     assert!((true_contact_z - zc).abs() < 1e-3);
     // The panel reports where the pin touched, quantised to 0.26 × 0.31 mm counts.
-    assert!((c.touch.u_mm - 10.3).abs() <= 133.0 / 512.0 / 2.0 + 1e-9, "{:?}", c.touch);
-    assert!((c.touch.v_mm + 5.2).abs() <= 80.0 / 256.0 / 2.0 + 1e-9, "{:?}", c.touch);
+    assert!(
+        (c.touch.u_mm - 10.3).abs() <= 133.0 / 512.0 / 2.0 + 1e-9,
+        "{:?}",
+        c.touch
+    );
+    assert!(
+        (c.touch.v_mm + 5.2).abs() <= 80.0 / 256.0 / 2.0 + 1e-9,
+        "{:?}",
+        c.touch
+    );
     let p = c.point_table_mm();
     assert!((p[0] + tp.table_to_world_mm.x - tip.x).abs() < 0.14);
     assert!((p[1] + tp.table_to_world_mm.y - tip.y).abs() < 0.16);
@@ -285,15 +371,28 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
     d.arm.home(T).unwrap();
     let (q, _, table_at_tip) = contact_setup(&rig);
     let q = d.arm.move_to(&q, T).unwrap();
-    let tip = rig.chain.position(&q, &ErrorParams::zeros(rig.chain.layout()));
-    let Instrument::TablePanel(tp) = &rig.instrument else { panic!() };
+    let tip = rig
+        .chain
+        .position(&q, &ErrorParams::zeros(rig.chain.layout()));
+    let Instrument::TablePanel(tp) = &rig.instrument else {
+        panic!()
+    };
     let xy = [table_at_tip.x, table_at_tip.y];
     let zc = tip.z - tp.table_to_world_mm.z;
     d.table.enable(T).unwrap();
     d.table.start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
     d.table.wait_reached(T).unwrap();
     pf.lock().unwrap().miss_next_touch = true;
-    let e = measure_contact(d.table.as_mut(), d.panel.as_mut(), xy, zc - 0.5, zc + 0.2, 1.0, Duration::from_secs(2)).unwrap_err();
+    let e = measure_contact(
+        d.table.as_mut(),
+        d.panel.as_mut(),
+        xy,
+        zc - 0.5,
+        zc + 0.2,
+        1.0,
+        Duration::from_secs(2),
+    )
+    .unwrap_err();
     assert!(matches!(e, DeviceError::MissedTouch { .. }), "{e}");
     assert!(e.is_retryable());
 
@@ -308,8 +407,21 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
         f.garbage_before_next = vec![0x00, 0xFF, 0x70, 0x12];
         f.corrupt_next_packet = true;
     }
-    let c = measure_contact(d.table.as_mut(), d.panel.as_mut(), xy, zc - 0.5, zc + 0.2, 0.4, Duration::from_secs(5)).unwrap();
-    assert!(c.touch.u_mm.abs() < 0.3 && c.touch.v_mm.abs() < 0.3, "{:?}", c.touch);
+    let c = measure_contact(
+        d.table.as_mut(),
+        d.panel.as_mut(),
+        xy,
+        zc - 0.5,
+        zc + 0.2,
+        0.4,
+        Duration::from_secs(5),
+    )
+    .unwrap();
+    assert!(
+        c.touch.u_mm.abs() < 0.3 && c.touch.v_mm.abs() < 0.3,
+        "{:?}",
+        c.touch
+    );
     let s = d.panel.stats();
     assert!(s.bad_checksum >= 1 && s.discarded_bytes >= 4, "{s:?}");
 }

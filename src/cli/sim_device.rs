@@ -49,9 +49,7 @@ pub fn run(a: Args) -> Result<()> {
     setup.clock = RealClock::shared();
     let emus = sim_emulators(&rig, &cfg, &setup)?;
     let (master, slave) = TTYPort::pair().context("cannot create a pseudo-terminal pair")?;
-    let path = slave
-        .name()
-        .context("the pseudo-terminal has no name")?;
+    let path = slave.name().context("the pseudo-terminal has no name")?;
     let io = SerialTransport::from_port(Box::new(master));
     let clock = setup.clock.clone();
     let _served = match a.device {

@@ -12,6 +12,7 @@
 //! reported as commanded are the rounded ones. After a move the driver reads `WH` (the
 //! controller's Cartesian pose) and checks it against the nominal forward kinematics.
 
+use std::collections::VecDeque;
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
@@ -19,8 +20,8 @@ use crate::devices::config::ArmConfig;
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::protocols::movemaster::{
-    quantise_joint_move, Command, Decimal, ErrorStatus, JointNumber, LineFramer, Resolution,
-    SpeedLevel, WhereReply,
+    quantise_joint_move, Command, Decimal, ErrorStatus, JointNumber, LineFramer, MovemasterError,
+    Resolution, SpeedLevel, WhereReply,
 };
 use crate::transports::{ByteTransport, TransportError};
 
@@ -33,20 +34,31 @@ pub struct MovemasterArm<T: ByteTransport> {
     cfg: ArmConfig,
     resolution: Resolution,
     framer: LineFramer,
+    lines: VecDeque<Result<Vec<u8>, MovemasterError>>,
     commanded_counts: Option<[i64; 5]>,
 }
 
 fn text(cmd: &Command) -> String {
-    String::from_utf8_lossy(&cmd.encode()).trim_end().to_string()
+    String::from_utf8_lossy(&cmd.encode())
+        .trim_end()
+        .to_string()
 }
 
 impl<T: ByteTransport> MovemasterArm<T> {
     /// A driver for `chain` (five joints) with the `[devices.arm]` settings.
-    pub fn new(io: T, chain: SerialChain, cfg: &ArmConfig, clock: SharedClock) -> Result<Self, DeviceError> {
+    pub fn new(
+        io: T,
+        chain: SerialChain,
+        cfg: &ArmConfig,
+        clock: SharedClock,
+    ) -> Result<Self, DeviceError> {
         if chain.dof() != 5 {
             return Err(DeviceError::Config {
                 key: "arm".into(),
-                reason: format!("the Movemaster drives 5 joints, the rig's chain has {}", chain.dof()),
+                reason: format!(
+                    "the Movemaster drives 5 joints, the rig's chain has {}",
+                    chain.dof()
+                ),
             });
         }
         let resolution = cfg
@@ -63,6 +75,7 @@ impl<T: ByteTransport> MovemasterArm<T> {
             cfg: cfg.clone(),
             resolution,
             framer: LineFramer::default(),
+            lines: VecDeque::new(),
             commanded_counts: None,
         })
     }
@@ -79,7 +92,9 @@ impl<T: ByteTransport> MovemasterArm<T> {
         counts
             .iter()
             .enumerate()
-            .map(|(k, c)| ((self.resolution.counts_to_deg(*c) - self.offset(k)) / self.sign(k)).to_radians())
+            .map(|(k, c)| {
+                ((self.resolution.counts_to_deg(*c) - self.offset(k)) / self.sign(k)).to_radians()
+            })
             .collect()
     }
 
@@ -100,12 +115,20 @@ impl<T: ByteTransport> MovemasterArm<T> {
 
     fn send(&mut self, cmd: &Command) -> Result<(), DeviceError> {
         tracing::debug!(command = %text(cmd), "arm: send");
-        self.io.write_all(&cmd.encode()).map_err(|e| self.transport(e))
+        self.io
+            .write_all(&cmd.encode())
+            .map_err(|e| self.transport(e))
     }
 
     fn current(&self) -> String {
         match &self.commanded_counts {
-            Some(c) => format!("{:?} deg (D-H)", self.counts_to_q(c).iter().map(|q| q.to_degrees()).collect::<Vec<_>>()),
+            Some(c) => format!(
+                "{:?} deg (D-H)",
+                self.counts_to_q(c)
+                    .iter()
+                    .map(|q| q.to_degrees())
+                    .collect::<Vec<_>>()
+            ),
             None => "not homed".into(),
         }
     }
@@ -116,21 +139,18 @@ impl<T: ByteTransport> MovemasterArm<T> {
         let deadline = start + timeout;
         let mut buf = [0u8; 64];
         loop {
+            if let Some(line) = self.lines.pop_front() {
+                return line.map_err(|e| DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request: request.into(),
+                    detail: e.to_string(),
+                });
+            }
             let remaining = deadline.saturating_sub(self.clock.now());
             match self.io.read(&mut buf, remaining) {
                 Ok(n) => {
-                    for line in self.framer.push(buf.get(..n).unwrap_or(&[])) {
-                        match line {
-                            Ok(l) => return Ok(l),
-                            Err(e) => {
-                                return Err(DeviceError::Protocol {
-                                    device: DeviceName::Arm,
-                                    request: request.into(),
-                                    detail: e.to_string(),
-                                })
-                            }
-                        }
-                    }
+                    let lines = self.framer.push(buf.get(..n).unwrap_or(&[]));
+                    self.lines.extend(lines);
                 }
                 Err(TransportError::Timeout { .. }) => {
                     return Err(DeviceError::Timeout {
@@ -143,7 +163,7 @@ impl<T: ByteTransport> MovemasterArm<T> {
                 }
                 Err(e) => return Err(self.transport(e)),
             }
-            if self.clock.now() >= deadline {
+            if self.lines.is_empty() && self.clock.now() >= deadline {
                 return Err(DeviceError::Timeout {
                     device: DeviceName::Arm,
                     waiting_for: format!("the reply to `{request}`"),
@@ -158,6 +178,7 @@ impl<T: ByteTransport> MovemasterArm<T> {
     fn read_status(&mut self, after: &str, timeout: Duration) -> Result<ErrorStatus, DeviceError> {
         self.io.clear_input().map_err(|e| self.transport(e))?;
         self.framer = LineFramer::default();
+        self.lines.clear();
         self.send(&Command::ErrorRead)?;
         let line = self.read_line(&format!("ER after {after}"), timeout)?;
         ErrorStatus::decode_body(&line).map_err(|e| DeviceError::Protocol {
@@ -237,10 +258,13 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
         let deg = self.controller_deg(&nest);
         let mut counts = [0i64; 5];
         for (c, d) in counts.iter_mut().zip(deg) {
-            *c = self.resolution.to_counts(d).map_err(|e| DeviceError::Config {
-                key: "arm.nest_deg".into(),
-                reason: e.to_string(),
-            })?;
+            *c = self
+                .resolution
+                .to_counts(d)
+                .map_err(|e| DeviceError::Config {
+                    key: "arm.nest_deg".into(),
+                    reason: e.to_string(),
+                })?;
         }
         self.commanded_counts = Some(counts);
         let q = self.counts_to_q(&counts);
@@ -272,13 +296,14 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
             });
         }
         let target = self.controller_deg(q);
-        let (mut cmd, counts) = quantise_joint_move(&target, &old, self.resolution).map_err(|e| {
-            DeviceError::Protocol {
-                device: DeviceName::Arm,
-                request: "MJ".into(),
-                detail: e.to_string(),
-            }
-        })?;
+        let (mut cmd, counts) =
+            quantise_joint_move(&target, &old, self.resolution).map_err(|e| {
+                DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request: "MJ".into(),
+                    detail: e.to_string(),
+                }
+            })?;
         let moving: Vec<usize> = (0..5).filter(|&k| counts[k] != old[k]).collect();
         if moving.is_empty() {
             return Ok(self.counts_to_q(&old));
@@ -288,13 +313,14 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
                 key: "arm".into(),
                 reason: e.to_string(),
             })?;
-            let angle = Decimal::from_counts(counts[*k] - old[*k], self.resolution).map_err(|e| {
-                DeviceError::Protocol {
-                    device: DeviceName::Arm,
-                    request: "DJ".into(),
-                    detail: e.to_string(),
-                }
-            })?;
+            let angle =
+                Decimal::from_counts(counts[*k] - old[*k], self.resolution).map_err(|e| {
+                    DeviceError::Protocol {
+                        device: DeviceName::Arm,
+                        request: "DJ".into(),
+                        detail: e.to_string(),
+                    }
+                })?;
             cmd = Command::MoveJoint { joint, angle };
         }
         self.command(&cmd, timeout)?;
@@ -311,6 +337,7 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
     fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
         self.io.clear_input().map_err(|e| self.transport(e))?;
         self.framer = LineFramer::default();
+        self.lines.clear();
         self.send(&Command::Where)?;
         let line = self.read_line("WH", timeout)?;
         let w = WhereReply::decode_body(&line).map_err(|e| DeviceError::Protocol {

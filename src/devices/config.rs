@@ -201,7 +201,10 @@ fn transport(key: &str, t: &str, can: bool) -> Result<(), (String, String)> {
         return Err(bad(key, "must not be empty: \"sim\" or a device path"));
     }
     if can && t.starts_with("slcan:") && t.len() == "slcan:".len() {
-        return Err(bad(key, "slcan needs a serial port: \"slcan:/dev/ttyACM0\""));
+        return Err(bad(
+            key,
+            "slcan needs a serial port: \"slcan:/dev/ttyACM0\"",
+        ));
     }
     Ok(())
 }
@@ -228,9 +231,16 @@ impl DevicesConfig {
                 "must be a power of ten from 1 down to 0.0001 (the Movemaster's is 0.1)",
             ));
         }
-        for (key, v) in [("arm.sign", &a.sign), ("arm.offset_deg", &a.offset_deg), ("arm.nest_deg", &a.nest_deg)] {
+        for (key, v) in [
+            ("arm.sign", &a.sign),
+            ("arm.offset_deg", &a.offset_deg),
+            ("arm.nest_deg", &a.nest_deg),
+        ] {
             if v.len() != 5 {
-                return Err(bad(key, format!("needs 5 values (one per RV-M2 joint), got {}", v.len())));
+                return Err(bad(
+                    key,
+                    format!("needs 5 values (one per RV-M2 joint), got {}", v.len()),
+                ));
             }
             if v.iter().any(|x| !x.is_finite()) {
                 return Err(bad(key, "must hold finite numbers"));
@@ -253,17 +263,32 @@ impl DevicesConfig {
                 return Err(bad(&format!("table.node_ids[{k}]"), "must lie in 1..=127"));
             }
         }
-        if t.node_ids[0] == t.node_ids[1] || t.node_ids[1] == t.node_ids[2] || t.node_ids[0] == t.node_ids[2] {
-            return Err(bad("table.node_ids", "the three drives need distinct node ids"));
+        if t.node_ids[0] == t.node_ids[1]
+            || t.node_ids[1] == t.node_ids[2]
+            || t.node_ids[0] == t.node_ids[2]
+        {
+            return Err(bad(
+                "table.node_ids",
+                "the three drives need distinct node ids",
+            ));
         }
         for (k, c) in t.counts_per_mm.iter().enumerate() {
             positive(&format!("table.counts_per_mm[{k}]"), *c)?;
         }
         positive("table.profile_velocity_mm_s", t.profile_velocity_mm_s)?;
-        positive("table.profile_acceleration_mm_s2", t.profile_acceleration_mm_s2)?;
-        positive("table.profile_deceleration_mm_s2", t.profile_deceleration_mm_s2)?;
+        positive(
+            "table.profile_acceleration_mm_s2",
+            t.profile_acceleration_mm_s2,
+        )?;
+        positive(
+            "table.profile_deceleration_mm_s2",
+            t.profile_deceleration_mm_s2,
+        )?;
         if t.heartbeat_ms == 0 {
-            return Err(bad("table.heartbeat_ms", "must be positive: rigcal supervises the drives' heartbeats"));
+            return Err(bad(
+                "table.heartbeat_ms",
+                "must be positive: rigcal supervises the drives' heartbeats",
+            ));
         }
         non_negative("table.bus_latency_ms", t.bus_latency_ms)?;
         if t.sdo_timeout_ms == 0 {

@@ -10,7 +10,11 @@ use crate::devices::traits::{DeviceError, Panel, Table, Touch};
 
 /// The largest approach speed (mm/s) for which the overshoot between the touch and the position
 /// read stays within `max_overshoot_mm`.
-pub fn approach_speed(panel_latency: Duration, bus_latency: Duration, max_overshoot_mm: f64) -> f64 {
+pub fn approach_speed(
+    panel_latency: Duration,
+    bus_latency: Duration,
+    max_overshoot_mm: f64,
+) -> f64 {
     let lat = (panel_latency + bus_latency).as_secs_f64().max(1e-6);
     max_overshoot_mm / lat
 }

@@ -21,9 +21,7 @@ use crate::devices::safety::{LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, Table};
 use crate::rig::{Instrument, Rig, TablePanel};
-use crate::transports::{
-    CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus,
-};
+use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
 
 /// The simulated world the emulators use.
 #[derive(Clone)]
@@ -102,7 +100,9 @@ pub struct RigDevices {
 
 impl std::fmt::Debug for RigDevices {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("RigDevices").field("clock", &self.clock).finish_non_exhaustive()
+        f.debug_struct("RigDevices")
+            .field("clock", &self.clock)
+            .finish_non_exhaustive()
     }
 }
 
@@ -131,18 +131,31 @@ pub fn table_panel(rig: &Rig) -> Result<&TablePanel, DeviceError> {
 }
 
 /// Builds the three emulators for `rig` in `setup`'s world.
-pub fn sim_emulators(rig: &Rig, cfg: &DevicesConfig, setup: &SimSetup) -> Result<SimEmulators, DeviceError> {
+pub fn sim_emulators(
+    rig: &Rig,
+    cfg: &DevicesConfig,
+    setup: &SimSetup,
+) -> Result<SimEmulators, DeviceError> {
     let tp = table_panel(rig)?;
     let truth: SharedTable = Arc::new(Mutex::new(TableTruth::at(setup.table_start_mm)));
     Ok(SimEmulators {
         arm: ArmEmulator::new(rig, &cfg.arm, Arc::clone(&setup.physics)),
         table: TableEmulator::new(&cfg.table, Arc::clone(&truth)),
-        panel: PanelEmulator::new(tp, &cfg.panel, Arc::clone(&setup.physics), Arc::clone(&truth)),
+        panel: PanelEmulator::new(
+            tp,
+            &cfg.panel,
+            Arc::clone(&setup.physics),
+            Arc::clone(&truth),
+        ),
         table_truth: truth,
     })
 }
 
-fn open_serial(device: &str, path: &str, s: &SerialSettings) -> Result<SerialTransport, DeviceError> {
+fn open_serial(
+    device: &str,
+    path: &str,
+    s: &SerialSettings,
+) -> Result<SerialTransport, DeviceError> {
     SerialTransport::open(path, s).map_err(|source| DeviceError::Transport {
         device: match device {
             "arm" => DeviceName::Arm,
@@ -173,7 +186,9 @@ fn open_can(t: &TableConfig) -> Result<Box<dyn CanBus>, DeviceError> {
     let ifname = tr.strip_prefix("socketcan:").unwrap_or(tr);
     #[cfg(target_os = "linux")]
     {
-        Ok(Box::new(crate::transports::SocketCanBus::open(ifname).map_err(err)?))
+        Ok(Box::new(
+            crate::transports::SocketCanBus::open(ifname).map_err(err)?,
+        ))
     }
     #[cfg(not(target_os = "linux"))]
     {
@@ -191,12 +206,17 @@ fn is_sim(t: &str) -> bool {
 /// Opens the rig's three devices.
 pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
     let cfg = rig.devices.clone().unwrap_or_default();
-    cfg.validate().map_err(|(key, reason)| DeviceError::Config { key, reason })?;
+    cfg.validate()
+        .map_err(|(key, reason)| DeviceError::Config { key, reason })?;
     let tp = table_panel(rig)?.clone();
     let (sim_arm, sim_table, sim_panel, setup) = match backend {
         Backend::Simulated(setup) => (true, true, true, setup),
         Backend::RigFile => {
-            let (a, t, p) = (is_sim(&cfg.arm.transport), is_sim(&cfg.table.transport), is_sim(&cfg.panel.transport));
+            let (a, t, p) = (
+                is_sim(&cfg.arm.transport),
+                is_sim(&cfg.table.transport),
+                is_sim(&cfg.panel.transport),
+            );
             let mut setup = SimSetup::nominal(rig);
             if !(a && t && p) {
                 setup.clock = RealClock::shared();
@@ -206,7 +226,11 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
     };
     let clock = Arc::clone(&setup.clock);
     let any_sim = sim_arm || sim_table || sim_panel;
-    let emus = if any_sim { Some(sim_emulators(rig, &cfg, &setup)?) } else { None };
+    let emus = if any_sim {
+        Some(sim_emulators(rig, &cfg, &setup)?)
+    } else {
+        None
+    };
     let mut controls = emus.as_ref().map(|e| SimControls {
         arm: None,
         table: None,
@@ -225,11 +249,21 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
                 c.arm = Some(e.faults());
             }
             let io = PolledSerial::new(e, Arc::clone(&clock));
-            Box::new(MovemasterArm::new(io, rig.chain.clone(), &cfg.arm, Arc::clone(&clock))?)
+            Box::new(MovemasterArm::new(
+                io,
+                rig.chain.clone(),
+                &cfg.arm,
+                Arc::clone(&clock),
+            )?)
         }
         None => {
             let io = open_serial("arm", &cfg.arm.transport, &cfg.arm.serial)?;
-            Box::new(MovemasterArm::new(io, rig.chain.clone(), &cfg.arm, Arc::clone(&clock))?)
+            Box::new(MovemasterArm::new(
+                io,
+                rig.chain.clone(),
+                &cfg.arm,
+                Arc::clone(&clock),
+            )?)
         }
     };
     let table: Box<dyn Table> = match emu_table.filter(|_| sim_table) {
@@ -240,7 +274,11 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
             let bus = PolledCan::new(e, Arc::clone(&clock));
             Box::new(CanOpenTable::new(bus, &cfg.table, Arc::clone(&clock))?)
         }
-        None => Box::new(CanOpenTable::new(open_can(&cfg.table)?, &cfg.table, Arc::clone(&clock))?),
+        None => Box::new(CanOpenTable::new(
+            open_can(&cfg.table)?,
+            &cfg.table,
+            Arc::clone(&clock),
+        )?),
     };
     let panel: Box<dyn Panel> = match emu_panel.filter(|_| sim_panel) {
         Some(e) => {
@@ -248,11 +286,23 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
                 c.panel = Some(e.faults());
             }
             let io = PolledSerial::new(e, Arc::clone(&clock));
-            Box::new(PenMountPanel::new(io, tp.panel_size_mm, tp.panel_counts, &cfg.panel, Arc::clone(&clock)))
+            Box::new(PenMountPanel::new(
+                io,
+                tp.panel_size_mm,
+                tp.panel_counts,
+                &cfg.panel,
+                Arc::clone(&clock),
+            ))
         }
         None => {
             let io = open_serial("panel", &cfg.panel.transport, &cfg.panel.serial)?;
-            Box::new(PenMountPanel::new(io, tp.panel_size_mm, tp.panel_counts, &cfg.panel, Arc::clone(&clock)))
+            Box::new(PenMountPanel::new(
+                io,
+                tp.panel_size_mm,
+                tp.panel_counts,
+                &cfg.panel,
+                Arc::clone(&clock),
+            ))
         }
     };
     use crate::kinematics::Robot;

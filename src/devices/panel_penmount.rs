@@ -31,7 +31,13 @@ pub struct PenMountPanel<T: ByteTransport> {
 
 impl<T: ByteTransport> PenMountPanel<T> {
     /// A driver for a panel of `size_mm` and `counts` with the `[devices.panel]` settings.
-    pub fn new(io: T, size_mm: [f64; 2], counts: [u32; 2], cfg: &PanelConfig, clock: SharedClock) -> Self {
+    pub fn new(
+        io: T,
+        size_mm: [f64; 2],
+        counts: [u32; 2],
+        cfg: &PanelConfig,
+        clock: SharedClock,
+    ) -> Self {
         PenMountPanel {
             io,
             clock,
@@ -50,7 +56,13 @@ impl<T: ByteTransport> PenMountPanel<T> {
 }
 
 /// Raw counts to (u, v) mm from the panel centre, with the rig file's flips and shifts.
-pub fn counts_to_mm(cx: u16, cy: u16, size: [f64; 2], counts: [u32; 2], cfg: &PanelConfig) -> (f64, f64) {
+pub fn counts_to_mm(
+    cx: u16,
+    cy: u16,
+    size: [f64; 2],
+    counts: [u32; 2],
+    cfg: &PanelConfig,
+) -> (f64, f64) {
     let u = (f64::from(cx) + 0.5) * size[0] / f64::from(counts[0]) - size[0] / 2.0;
     let v = (f64::from(cy) + 0.5) * size[1] / f64::from(counts[1]) - size[1] / 2.0;
     let u = if cfg.flip_u { -u } else { u } + cfg.shift_u_mm;
@@ -60,10 +72,12 @@ pub fn counts_to_mm(cx: u16, cy: u16, size: [f64; 2], counts: [u32; 2], cfg: &Pa
 
 impl<T: ByteTransport> Panel for PenMountPanel<T> {
     fn clear(&mut self) -> Result<(), DeviceError> {
-        self.io.clear_input().map_err(|source| DeviceError::Transport {
-            device: DeviceName::Panel,
-            source,
-        })?;
+        self.io
+            .clear_input()
+            .map_err(|source| DeviceError::Transport {
+                device: DeviceName::Panel,
+                source,
+            })?;
         // Drop what is buffered and a partial packet; keep the counters.
         let mut buf = [0u8; 256];
         for _ in 0..4096 {
@@ -88,7 +102,11 @@ impl<T: ByteTransport> Panel for PenMountPanel<T> {
                     for p in self.decoder.push(buf.get(..n).unwrap_or(&[])) {
                         if p.touch {
                             let (u_mm, v_mm) = self.to_mm(p.x, p.y);
-                            return Ok(Touch { counts: [p.x, p.y], u_mm, v_mm });
+                            return Ok(Touch {
+                                counts: [p.x, p.y],
+                                u_mm,
+                                v_mm,
+                            });
                         }
                     }
                 }
@@ -101,7 +119,12 @@ impl<T: ByteTransport> Panel for PenMountPanel<T> {
                         current: format!("{:?}", self.stats()),
                     })
                 }
-                Err(source) => return Err(DeviceError::Transport { device: DeviceName::Panel, source }),
+                Err(source) => {
+                    return Err(DeviceError::Transport {
+                        device: DeviceName::Panel,
+                        source,
+                    })
+                }
             }
             if self.clock.now() >= deadline {
                 return Err(DeviceError::Timeout {
@@ -144,7 +167,11 @@ mod tests {
         let (u, v) = counts_to_mm(511, 255, [133.0, 80.0], [512, 256], &cfg);
         assert!((u - (511.5 * 133.0 / 512.0 - 66.5)).abs() < 1e-12);
         assert!((v - (255.5 * 80.0 / 256.0 - 40.0)).abs() < 1e-12);
-        let flipped = PanelConfig { flip_u: true, shift_v_mm: 1.0, ..PanelConfig::default() };
+        let flipped = PanelConfig {
+            flip_u: true,
+            shift_v_mm: 1.0,
+            ..PanelConfig::default()
+        };
         let (u2, v2) = counts_to_mm(511, 255, [133.0, 80.0], [512, 256], &flipped);
         assert!((u2 + u).abs() < 1e-12 && (v2 - v - 1.0).abs() < 1e-12);
     }

@@ -137,7 +137,10 @@ impl<T: Table> Table for LimitedTable<T> {
     fn start_move(&mut self, target_mm: [f64; 3], timeout: Duration) -> Result<(), DeviceError> {
         self.check(&target_mm)?;
         self.inner.start_move(target_mm, timeout)?;
-        self.pass_top_z = Some(self.pass_top_z.map_or(target_mm[2], |z| z.max(target_mm[2])));
+        self.pass_top_z = Some(
+            self.pass_top_z
+                .map_or(target_mm[2], |z| z.max(target_mm[2])),
+        );
         Ok(())
     }
     fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {

@@ -17,14 +17,17 @@
 //! Units: mm on the trait, counts on the wire (counts per mm per axis from the rig file); times
 //! on the driver's [`Clock`](crate::devices::clock::Clock).
 
+// Axis index k addresses several per-axis arrays at once (node ids, units, heartbeat times).
+#![allow(clippy::needless_range_loop)]
+
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
 use crate::devices::config::TableConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Table};
 use crate::protocols::canopen::{
-    od, CanOpenMessage, Controlword, DriveState, Nmt, NmtCommand, NodeId, SdoData, SdoRequest,
-    SdoResponse, Statusword, next_controlword_towards_enabled,
+    next_controlword_towards_enabled, od, CanOpenMessage, Controlword, DriveState, Nmt, NmtCommand,
+    NodeId, SdoData, SdoRequest, SdoResponse, Statusword,
 };
 use crate::transports::{CanBus, TransportError};
 
@@ -81,7 +84,10 @@ impl<B: CanBus> CanOpenTable<B> {
         Duration::from_millis(3 * u64::from(self.cfg.heartbeat_ms))
     }
 
-    fn observe(&mut self, frame: &crate::protocols::can::CanFrame) -> Option<(NodeId, SdoResponse)> {
+    fn observe(
+        &mut self,
+        frame: &crate::protocols::can::CanFrame,
+    ) -> Option<(NodeId, SdoResponse)> {
         match CanOpenMessage::decode(frame) {
             Ok(CanOpenMessage::Heartbeat(hb)) => {
                 if let Some(k) = self.nodes.iter().position(|n| *n == hb.node) {
@@ -93,7 +99,11 @@ impl<B: CanBus> CanOpenTable<B> {
                 if let Some(k) = self.nodes.iter().position(|n| *n == e.node) {
                     let code = e.error_code.code();
                     if code != 0 {
-                        tracing::warn!(node = e.node.get(), code = format_args!("{code:#06x}"), "table: EMCY");
+                        tracing::warn!(
+                            node = e.node.get(),
+                            code = format_args!("{code:#06x}"),
+                            "table: EMCY"
+                        );
                         self.emcy[k] = Some(code);
                     }
                 }
@@ -170,7 +180,10 @@ impl<B: CanBus> CanOpenTable<B> {
                 Err(TransportError::Timeout { .. }) => {
                     return Err(DeviceError::Timeout {
                         device: DeviceName::Table,
-                        waiting_for: format!("the SDO {access} response of node {} for {index:#06x}:{sub}", node.get()),
+                        waiting_for: format!(
+                            "the SDO {access} response of node {} for {index:#06x}:{sub}",
+                            node.get()
+                        ),
                         waited: self.clock.now().saturating_sub(start),
                         target: format!("{:?}", self.target_mm),
                         current: format!("{:?}", self.last_pos),
@@ -209,7 +222,14 @@ impl<B: CanBus> CanOpenTable<B> {
     }
 
     fn write(&mut self, k: usize, index: u16, data: SdoData) -> Result<(), DeviceError> {
-        match self.sdo(k, SdoRequest::Download { index, sub: 0, data })? {
+        match self.sdo(
+            k,
+            SdoRequest::Download {
+                index,
+                sub: 0,
+                data,
+            },
+        )? {
             SdoResponse::DownloadAck { .. } => Ok(()),
             other => Err(DeviceError::Protocol {
                 device: DeviceName::Table,
@@ -249,8 +269,13 @@ impl<B: CanBus> CanOpenTable<B> {
     /// per drive), so every axis is read one bus latency after the call.
     fn read_positions(&mut self) -> Result<[f64; 3], DeviceError> {
         for k in 0..3 {
-            let req = SdoRequest::Upload { index: od::POSITION_ACTUAL, sub: 0 };
-            self.bus.send(&req.encode(self.nodes[k])).map_err(Self::transport)?;
+            let req = SdoRequest::Upload {
+                index: od::POSITION_ACTUAL,
+                sub: 0,
+            };
+            self.bus
+                .send(&req.encode(self.nodes[k]))
+                .map_err(Self::transport)?;
         }
         let start = self.clock.now();
         let deadline = start + Duration::from_millis(self.cfg.sdo_timeout_ms);
@@ -261,14 +286,21 @@ impl<B: CanBus> CanOpenTable<B> {
                 Ok(f) => f,
                 Err(TransportError::Timeout { .. }) => {
                     return Err(self.timeout(
-                        format!("the position reads (0x6064) of nodes {:?}, got {got:?}", self.cfg.node_ids),
+                        format!(
+                            "the position reads (0x6064) of nodes {:?}, got {got:?}",
+                            self.cfg.node_ids
+                        ),
                         self.clock.now().saturating_sub(start),
                     ))
                 }
                 Err(e) => return Err(Self::transport(e)),
             };
-            let Some((node, resp)) = self.observe(&frame) else { continue };
-            let Some(k) = self.nodes.iter().position(|n| *n == node) else { continue };
+            let Some((node, resp)) = self.observe(&frame) else {
+                continue;
+            };
+            let Some(k) = self.nodes.iter().position(|n| *n == node) else {
+                continue;
+            };
             if resp.index() != od::POSITION_ACTUAL {
                 continue;
             }
@@ -289,7 +321,11 @@ impl<B: CanBus> CanOpenTable<B> {
                 SdoResponse::DownloadAck { .. } => {}
             }
         }
-        let p = [got[0].unwrap_or(f64::NAN), got[1].unwrap_or(f64::NAN), got[2].unwrap_or(f64::NAN)];
+        let p = [
+            got[0].unwrap_or(f64::NAN),
+            got[1].unwrap_or(f64::NAN),
+            got[2].unwrap_or(f64::NAN),
+        ];
         self.last_pos = Some(p);
         Ok(p)
     }
@@ -319,12 +355,17 @@ impl<B: CanBus> CanOpenTable<B> {
                 }
                 if self.clock.now().saturating_sub(start) > timeout {
                     return Err(self.timeout(
-                        format!("axis {} to reach operation enabled (state {state:?})", AXES[k]),
+                        format!(
+                            "axis {} to reach operation enabled (state {state:?})",
+                            AXES[k]
+                        ),
                         self.clock.now().saturating_sub(start),
                     ));
                 }
                 if let Some(cw) = next_controlword_towards_enabled(state) {
-                    if cw & Controlword::BIT_FAULT_RESET != 0 && self.last_cw[k] & Controlword::BIT_FAULT_RESET != 0 {
+                    if cw & Controlword::BIT_FAULT_RESET != 0
+                        && self.last_cw[k] & Controlword::BIT_FAULT_RESET != 0
+                    {
                         self.write_cw(k, 0)?; // the reset acts on a rising edge
                     }
                     self.write_cw(k, cw)?;
@@ -347,12 +388,26 @@ fn cfg_err(key: &str, e: impl std::fmt::Display) -> DeviceError {
 impl<B: CanBus> Table for CanOpenTable<B> {
     fn enable(&mut self, timeout: Duration) -> Result<(), DeviceError> {
         self.bus
-            .send(&Nmt { command: NmtCommand::Start, node: None }.encode())
+            .send(
+                &Nmt {
+                    command: NmtCommand::Start,
+                    node: None,
+                }
+                .encode(),
+            )
             .map_err(Self::transport)?;
         for k in 0..3 {
-            self.write(k, od::PRODUCER_HEARTBEAT_TIME, SdoData::from_u16(self.cfg.heartbeat_ms))?;
+            self.write(
+                k,
+                od::PRODUCER_HEARTBEAT_TIME,
+                SdoData::from_u16(self.cfg.heartbeat_ms),
+            )?;
             self.last_hb[k] = Some(self.clock.now());
-            self.write(k, od::MODES_OF_OPERATION, SdoData::from_i8(od::MODE_PROFILE_POSITION))?;
+            self.write(
+                k,
+                od::MODES_OF_OPERATION,
+                SdoData::from_i8(od::MODE_PROFILE_POSITION),
+            )?;
             let mode = self.read(k, od::MODES_OF_OPERATION_DISPLAY)?.to_i32();
             if mode != i32::from(od::MODE_PROFILE_POSITION) {
                 return Err(DeviceError::Protocol {
@@ -393,7 +448,9 @@ impl<B: CanBus> Table for CanOpenTable<B> {
         self.check_health()?;
         self.target_mm = Some(target_mm);
         let start = self.clock.now();
-        let run = Controlword::ENABLE_OPERATION.with_change_set_immediately(true).0;
+        let run = Controlword::ENABLE_OPERATION
+            .with_change_set_immediately(true)
+            .0;
         for k in 0..3 {
             let c = self.counts(k, target_mm[k])?;
             self.write(k, od::TARGET_POSITION, SdoData::from_i32(c))?;
@@ -409,7 +466,13 @@ impl<B: CanBus> Table for CanOpenTable<B> {
                 }
                 let waited = self.clock.now().saturating_sub(start);
                 if waited > timeout {
-                    return Err(self.timeout(format!("axis {} to acknowledge the set-point (statusword {:#06x})", AXES[k], sw.0), waited));
+                    return Err(self.timeout(
+                        format!(
+                            "axis {} to acknowledge the set-point (statusword {:#06x})",
+                            AXES[k], sw.0
+                        ),
+                        waited,
+                    ));
                 }
                 self.clock.sleep(self.poll());
             }
@@ -445,7 +508,10 @@ impl<B: CanBus> Table for CanOpenTable<B> {
             let waited = self.clock.now().saturating_sub(start);
             if waited > timeout {
                 let _ = self.read_positions();
-                return Err(self.timeout("every axis to reach its target (statusword bit 10)".into(), waited));
+                return Err(self.timeout(
+                    "every axis to reach its target (statusword bit 10)".into(),
+                    waited,
+                ));
             }
             self.clock.sleep(self.poll());
         }

@@ -457,7 +457,11 @@ impl TableTruth {
     /// Standing at `p`.
     pub fn at(p: [f64; 3]) -> Self {
         TableTruth {
-            axes: [Profile::still(p[0]), Profile::still(p[1]), Profile::still(p[2])],
+            axes: [
+                Profile::still(p[0]),
+                Profile::still(p[1]),
+                Profile::still(p[2]),
+            ],
         }
     }
 

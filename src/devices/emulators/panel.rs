@@ -60,7 +60,12 @@ pub struct PanelEmulator {
 
 impl PanelEmulator {
     /// A panel of the rig's size and counts with the `[devices.panel]` settings.
-    pub fn new(tp: &TablePanel, cfg: &PanelConfig, physics: SharedPhysics, table: SharedTable) -> Self {
+    pub fn new(
+        tp: &TablePanel,
+        cfg: &PanelConfig,
+        physics: SharedPhysics,
+        table: SharedTable,
+    ) -> Self {
         PanelEmulator {
             cfg: cfg.clone(),
             size: tp.panel_size_mm,
@@ -215,7 +220,11 @@ impl ByteEmulator for PanelEmulator {
     fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration> {
         self.advance(now);
         let queued = self.out.front().map(|(t, _)| *t);
-        let report = if self.suppressed { None } else { self.next_report.filter(|_| self.contact.is_some()) };
+        let report = if self.suppressed {
+            None
+        } else {
+            self.next_report.filter(|_| self.contact.is_some())
+        };
         let change = self
             .find_change(now, horizon, self.contact.is_some())
             .map(|t| t + self.latency());

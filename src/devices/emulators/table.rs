@@ -150,7 +150,9 @@ impl TableEmulator {
     }
 
     fn statusword(&self, k: usize, t: Duration) -> u16 {
-        let Some(d) = self.drives.get(k) else { return 0 };
+        let Some(d) = self.drives.get(k) else {
+            return 0;
+        };
         let mut s = Statusword::for_state(d.state).with_bit(9, true);
         let powered = matches!(
             d.state,
@@ -219,13 +221,14 @@ impl TableEmulator {
             } else if cw & 0x0087 == 0x0006 {
                 d.state = DriveState::ReadyToSwitchOn; // shutdown
             } else if cw & 0x008F == 0x0007 {
-                if matches!(d.state, DriveState::ReadyToSwitchOn | DriveState::OperationEnabled) {
+                if matches!(
+                    d.state,
+                    DriveState::ReadyToSwitchOn | DriveState::OperationEnabled
+                ) {
                     d.state = DriveState::SwitchedOn;
                 }
-            } else if cw & 0x008F == 0x000F {
-                if matches!(d.state, DriveState::SwitchedOn) {
-                    d.state = DriveState::OperationEnabled;
-                }
+            } else if cw & 0x008F == 0x000F && d.state == DriveState::SwitchedOn {
+                d.state = DriveState::OperationEnabled;
             }
             if d.state == DriveState::OperationEnabled && d.mode == od::MODE_PROFILE_POSITION {
                 if cw & Controlword::BIT_HALT != 0 {
@@ -358,8 +361,8 @@ impl TableEmulator {
                     od::PRODUCER_HEARTBEAT_TIME => {
                         let d = &mut self.drives[k];
                         d.hb_ms = v as u16;
-                        d.next_hb = (d.hb_ms > 0)
-                            .then(|| now + Duration::from_millis(u64::from(d.hb_ms)));
+                        d.next_hb =
+                            (d.hb_ms > 0).then(|| now + Duration::from_millis(u64::from(d.hb_ms)));
                         ok
                     }
                     od::STATUSWORD | od::POSITION_ACTUAL | od::MODES_OF_OPERATION_DISPLAY => {
@@ -429,9 +432,13 @@ impl FrameEmulator for TableEmulator {
                 }
             }
             Ok(CanOpenMessage::SdoRequest { node, request }) => {
-                let ours = self.drives.iter().any(|d| d.node == node && d.nmt != NmtState::Stopped);
+                let ours = self
+                    .drives
+                    .iter()
+                    .any(|d| d.node == node && d.nmt != NmtState::Stopped);
                 if ours && !ignore {
-                    self.requests.push_back((now + self.latency + delay, node, request));
+                    self.requests
+                        .push_back((now + self.latency + delay, node, request));
                 }
             }
             _ => {}
@@ -470,7 +477,11 @@ impl FrameEmulator for TableEmulator {
         let req = self.requests.front().map(|(t, _, _)| *t);
         let out = self.out.iter().map(|(t, _)| *t).min();
         let hb = self.drives.iter().filter_map(|d| d.next_hb).min();
-        let fault = self.drives.iter().filter_map(|d| d.fault_at.map(|f| f.0)).min();
+        let fault = self
+            .drives
+            .iter()
+            .filter_map(|d| d.fault_at.map(|f| f.0))
+            .min();
         [req, out, hb, fault].into_iter().flatten().min()
     }
 }
