@@ -468,3 +468,33 @@ fn threaded_emulators_serve_canopen_over_the_simulated_bus_and_movemaster_over_a
     arm.home(T).unwrap();
     arm.move_to(&deg(&[1.0, 85.0, -85.0, 0.0, 0.0]), T).unwrap();
 }
+
+#[test]
+fn waiting_for_the_table_times_out_with_target_and_position() {
+    let rig = rig();
+    let mut d = devices(&rig);
+    d.table.enable(T).unwrap();
+    d.table.start_move([400.0, 280.0, 500.0], T).unwrap();
+    let t0 = d.clock.now();
+    let e = d
+        .table
+        .wait_reached(Duration::from_millis(300))
+        .unwrap_err();
+    let waited = d.clock.now() - t0;
+    assert!(
+        waited >= Duration::from_millis(300) && waited < Duration::from_millis(400),
+        "{waited:?}"
+    );
+    match &e {
+        DeviceError::Timeout {
+            target, current, ..
+        } => {
+            assert!(target.contains("500.0"), "{target}");
+            assert!(current.contains("Some"), "{current}");
+        }
+        other => panic!("{other}"),
+    }
+    assert!(e.is_retryable());
+    let p = d.table.wait_reached(T).unwrap();
+    assert!((p[2] - 500.0).abs() < 0.001);
+}
