@@ -14,8 +14,10 @@
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
 //! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
+//! | [`devices`] | arm, table and panel drivers, their emulators, safety wrappers, the factory |
 pub mod cli;
 pub mod compensation;
+pub mod devices;
 pub mod division;
 pub mod identification;
 pub mod kinematics;

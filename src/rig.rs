@@ -176,6 +176,8 @@ pub struct Rig {
     /// Workspace bounds for division in spherical coordinates (R mm, azimuth rad, elevation rad),
     /// when the rig file states them.
     pub spherical_bounds: Option<[[f64; 2]; 3]>,
+    /// How the devices are reached (`[devices]`), when the rig file says.
+    pub devices: Option<crate::devices::DevicesConfig>,
     /// The file it came from.
     pub source: RigSource,
 }
@@ -193,6 +195,8 @@ struct RawRig {
     instrument: RawInstrument,
     #[serde(default)]
     workspace: RawWorkspace,
+    #[serde(default)]
+    devices: Option<crate::devices::DevicesConfig>,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -417,6 +421,10 @@ impl Validator {
         let calibration = self.calibration(&raw.calibration, &chain)?;
         let instrument = self.instrument(&raw.instrument)?;
         let spherical_bounds = self.workspace(&raw.workspace)?;
+        if let Some(d) = &raw.devices {
+            d.validate()
+                .map_err(|(key, reason)| self.invalid(format!("devices.{key}"), reason))?;
+        }
         Ok(Rig {
             name: raw.name,
             description: raw.description,
@@ -425,6 +433,7 @@ impl Validator {
             calibration,
             instrument,
             spherical_bounds,
+            devices: raw.devices,
             source: RigSource {
                 path: None,
                 text: String::new(),

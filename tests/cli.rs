@@ -166,3 +166,33 @@ fn bad_input_gets_clear_errors() {
     assert!(!ok);
     assert!(err.contains("cannot read rig file rigs/nope.toml"), "{err}");
 }
+
+/// `rigcal sim-device arm --pty` prints a port path and answers Movemaster commands there.
+#[test]
+fn sim_device_serves_the_arm_on_a_pseudo_terminal() {
+    use std::io::{BufRead, BufReader, Read, Write};
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rigcal"))
+        .args(["sim-device", "arm", "--rig", "rigs/rv-m2.toml", "--pty"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).unwrap();
+    let path = line.trim().to_string();
+    let result = std::panic::catch_unwind(|| {
+        assert!(path.starts_with("/dev/"), "{path}");
+        let mut port = serialport::new(&path, 9600)
+            .timeout(std::time::Duration::from_millis(200))
+            .open()
+            .unwrap();
+        port.write_all(b"ER\r").unwrap();
+        let mut buf = [0u8; 2];
+        port.read_exact(&mut buf).unwrap();
+        assert_eq!(&buf, b"0\r");
+    });
+    let _ = child.kill();
+    let _ = child.wait();
+    result.unwrap();
+}

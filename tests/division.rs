@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rigcal::compensation::{compensate, CompensationOptions};
-use rigcal::division::{divide, DivisionOptions, Measurer, Mode, RegionModel, Space};
+use rigcal::division::{divide, DivisionOptions, Measurer, Mode, RegionModel};
 use rigcal::identification::{analyse, candidate_order, random_poses};
 use rigcal::kinematics::{ErrorModel, ErrorParams, Robot};
 use rigcal::rig::Rig;

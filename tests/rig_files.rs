@@ -128,3 +128,26 @@ fn malformed_rig_files_name_file_and_key() {
         assert!(e.contains(needle), "expected `{needle}` in: {e}");
     }
 }
+
+#[test]
+fn the_devices_section_is_validated_and_errors_name_its_key() {
+    let rig = Rig::load(Path::new("rigs/rv-m2.toml")).unwrap();
+    let d = rig
+        .devices
+        .as_ref()
+        .expect("rv-m2.toml has a [devices] section");
+    assert_eq!(d.arm.transport, "sim");
+    assert!((d.arm.resolution_deg - 0.1).abs() < 1e-12);
+    assert_eq!(d.table.node_ids, [1, 2, 3]);
+    assert!(Rig::parse(GOOD, None).unwrap().devices.is_none());
+    let bad = format!("{GOOD}\n[devices.arm]\nresolution_deg = 0.3\n");
+    let e = err(&bad);
+    assert!(
+        e.contains("bad.toml") && e.contains("`devices.arm.resolution_deg`"),
+        "{e}"
+    );
+    let bad = format!("{GOOD}\n[devices.table]\nnode_ids = [1, 2, 200]\n");
+    assert!(err(&bad).contains("`devices.table.node_ids[2]`"));
+    let bad = format!("{GOOD}\n[devices.panel]\nlatency = 3\n");
+    assert!(err(&bad).contains("unknown field `latency`"));
+}

@@ -258,11 +258,26 @@ fn print_summary(
     }
 }
 
-/// TEMPORARY until the scenario loader lands.
+/// The scenario's world as the division's measurer; the scenario must be for this rig.
 fn planning_world(
-    _rig: &Rig,
-    _scenario: &std::path::Path,
+    rig: &Rig,
+    scenario: &std::path::Path,
     _seed: u64,
 ) -> Result<crate::cli::demo::WorldMeasurer> {
-    bail!("planning mode needs scenario files")
+    let sc = crate::world::Scenario::load(scenario, None)?;
+    if sc.rig.name != rig.name {
+        bail!(
+            "scenario {} is for rig `{}`, not `{}`: pass --rig {}",
+            scenario.display(),
+            sc.rig.name,
+            rig.name,
+            sc.rig_path.display()
+        );
+    }
+    Ok(crate::cli::demo::WorldMeasurer {
+        world: sc.world(),
+        seq: 0,
+        t_s: 0.0,
+        step_s: sc.measurement.seconds_per_point,
+    })
 }

@@ -156,15 +156,19 @@ pub(crate) fn fig6_path(n: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// The simulated world as a division's measurer: each call is the next measurement.
+/// The simulated world as a division's measurer: each call is the next measurement, taken
+/// `step_s` after the previous one, with the world's motion history (backlash, drift).
 pub(crate) struct WorldMeasurer {
     pub world: World,
     pub seq: u64,
+    pub t_s: f64,
+    pub step_s: f64,
 }
 
 impl crate::division::Measurer for WorldMeasurer {
     fn measure(&mut self, q: &[f64]) -> Option<Vector3<f64>> {
         self.seq += 1;
-        Some(self.world.measure(q, self.seq, 0))
+        self.t_s += self.step_s;
+        self.world.measure_at(q, self.t_s, self.seq, 0).position
     }
 }

@@ -6,6 +6,7 @@ mod demo;
 mod identify;
 mod observability;
 mod register;
+mod sim_device;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -43,6 +44,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
     Simulate(simulate::Args),
+    /// Serve one device's emulator on a pseudo-terminal (prints the port path).
+    SimDevice(sim_device::Args),
 }
 
 /// Runs the command line and returns the process exit code.
@@ -57,6 +60,7 @@ pub fn main() -> ExitCode {
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Simulate(a) => simulate::run(a),
+        Command::SimDevice(a) => sim_device::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

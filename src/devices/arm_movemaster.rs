@@ -1,0 +1,373 @@
+//! Driver for the RV-M2 on its Movemaster controller over RS-232.
+//!
+//! Protocol: [`crate::protocols::movemaster`], one CR-terminated command at a time; every
+//! command is followed by `ER` and the next command waits for its reply, which also marks the
+//! end of a motion (the controller executes in order). No pipelining.
+//!
+//! Units and conventions: the trait speaks D-H joint angles in radians; the wire speaks
+//! controller degrees, controller angle = sign · q + offset per joint (rig file). `MJ`/`DJ` are
+//! relative, so the driver tracks the absolute controller angles itself, from the nest pose
+//! (rig file, D-H degrees) after `NT`; each increment is the difference of *rounded absolute*
+//! targets (resolution from the rig file), so rounding never accumulates, and the joint values
+//! reported as commanded are the rounded ones. After a move the driver reads `WH` (the
+//! controller's Cartesian pose) and checks it against the nominal forward kinematics.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use crate::devices::clock::SharedClock;
+use crate::devices::config::ArmConfig;
+use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName};
+use crate::kinematics::{ErrorParams, Robot, SerialChain};
+use crate::protocols::movemaster::{
+    quantise_joint_move, Command, Decimal, ErrorStatus, JointNumber, LineFramer, MovemasterError,
+    Resolution, SpeedLevel, WhereReply,
+};
+use crate::transports::{ByteTransport, TransportError};
+
+/// The Movemaster driver over any byte transport.
+#[derive(Debug)]
+pub struct MovemasterArm<T: ByteTransport> {
+    io: T,
+    clock: SharedClock,
+    chain: SerialChain,
+    cfg: ArmConfig,
+    resolution: Resolution,
+    framer: LineFramer,
+    lines: VecDeque<Result<Vec<u8>, MovemasterError>>,
+    commanded_counts: Option<[i64; 5]>,
+}
+
+fn text(cmd: &Command) -> String {
+    String::from_utf8_lossy(&cmd.encode())
+        .trim_end()
+        .to_string()
+}
+
+impl<T: ByteTransport> MovemasterArm<T> {
+    /// A driver for `chain` (five joints) with the `[devices.arm]` settings.
+    pub fn new(
+        io: T,
+        chain: SerialChain,
+        cfg: &ArmConfig,
+        clock: SharedClock,
+    ) -> Result<Self, DeviceError> {
+        if chain.dof() != 5 {
+            return Err(DeviceError::Config {
+                key: "arm".into(),
+                reason: format!(
+                    "the Movemaster drives 5 joints, the rig's chain has {}",
+                    chain.dof()
+                ),
+            });
+        }
+        let resolution = cfg
+            .resolution_decimals()
+            .and_then(|d| Resolution::new(d).ok())
+            .ok_or_else(|| DeviceError::Config {
+                key: "arm.resolution_deg".into(),
+                reason: "must be a power of ten from 1 down to 0.0001".into(),
+            })?;
+        Ok(MovemasterArm {
+            io,
+            clock,
+            chain,
+            cfg: cfg.clone(),
+            resolution,
+            framer: LineFramer::default(),
+            lines: VecDeque::new(),
+            commanded_counts: None,
+        })
+    }
+
+    fn sign(&self, k: usize) -> f64 {
+        self.cfg.sign.get(k).copied().unwrap_or(1.0)
+    }
+
+    fn offset(&self, k: usize) -> f64 {
+        self.cfg.offset_deg.get(k).copied().unwrap_or(0.0)
+    }
+
+    fn counts_to_q(&self, counts: &[i64; 5]) -> Vec<f64> {
+        counts
+            .iter()
+            .enumerate()
+            .map(|(k, c)| {
+                ((self.resolution.counts_to_deg(*c) - self.offset(k)) / self.sign(k)).to_radians()
+            })
+            .collect()
+    }
+
+    fn controller_deg(&self, q: &[f64]) -> [f64; 5] {
+        let mut out = [0.0; 5];
+        for (k, slot) in out.iter_mut().enumerate() {
+            *slot = self.sign(k) * q.get(k).copied().unwrap_or(0.0).to_degrees() + self.offset(k);
+        }
+        out
+    }
+
+    fn transport(&self, source: TransportError) -> DeviceError {
+        DeviceError::Transport {
+            device: DeviceName::Arm,
+            source,
+        }
+    }
+
+    fn send(&mut self, cmd: &Command) -> Result<(), DeviceError> {
+        tracing::debug!(command = %text(cmd), "arm: send");
+        self.io
+            .write_all(&cmd.encode())
+            .map_err(|e| self.transport(e))
+    }
+
+    fn current(&self) -> String {
+        match &self.commanded_counts {
+            Some(c) => format!(
+                "{:?} deg (D-H)",
+                self.counts_to_q(c)
+                    .iter()
+                    .map(|q| q.to_degrees())
+                    .collect::<Vec<_>>()
+            ),
+            None => "not homed".into(),
+        }
+    }
+
+    /// Reads one reply line, waiting at most `timeout` (clock time).
+    fn read_line(&mut self, request: &str, timeout: Duration) -> Result<Vec<u8>, DeviceError> {
+        let start = self.clock.now();
+        let deadline = start + timeout;
+        let mut buf = [0u8; 64];
+        loop {
+            if let Some(line) = self.lines.pop_front() {
+                return line.map_err(|e| DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request: request.into(),
+                    detail: e.to_string(),
+                });
+            }
+            let remaining = deadline.saturating_sub(self.clock.now());
+            match self.io.read(&mut buf, remaining) {
+                Ok(n) => {
+                    let lines = self.framer.push(buf.get(..n).unwrap_or(&[]));
+                    self.lines.extend(lines);
+                }
+                Err(TransportError::Timeout { .. }) => {
+                    return Err(DeviceError::Timeout {
+                        device: DeviceName::Arm,
+                        waiting_for: format!("the reply to `{request}`"),
+                        waited: self.clock.now().saturating_sub(start),
+                        target: request.into(),
+                        current: self.current(),
+                    })
+                }
+                Err(e) => return Err(self.transport(e)),
+            }
+            if self.lines.is_empty() && self.clock.now() >= deadline {
+                return Err(DeviceError::Timeout {
+                    device: DeviceName::Arm,
+                    waiting_for: format!("the reply to `{request}`"),
+                    waited: self.clock.now().saturating_sub(start),
+                    target: request.into(),
+                    current: self.current(),
+                });
+            }
+        }
+    }
+
+    fn read_status(&mut self, after: &str, timeout: Duration) -> Result<ErrorStatus, DeviceError> {
+        self.io.clear_input().map_err(|e| self.transport(e))?;
+        self.framer = LineFramer::default();
+        self.lines.clear();
+        self.send(&Command::ErrorRead)?;
+        let line = self.read_line(&format!("ER after {after}"), timeout)?;
+        ErrorStatus::decode_body(&line).map_err(|e| DeviceError::Protocol {
+            device: DeviceName::Arm,
+            request: format!("ER after {after}"),
+            detail: e.to_string(),
+        })
+    }
+
+    /// Sends `cmd`, then `ER`, and waits for its reply (the end of any motion).
+    fn command(&mut self, cmd: &Command, timeout: Duration) -> Result<(), DeviceError> {
+        let t = text(cmd);
+        self.send(cmd)?;
+        match self.read_status(&t, timeout)? {
+            ErrorStatus::None => Ok(()),
+            status => {
+                let joints_deg = self
+                    .commanded_counts
+                    .as_ref()
+                    .map(|c| self.counts_to_q(c).iter().map(|q| q.to_degrees()).collect());
+                if status == ErrorStatus::Hardware {
+                    // Where the arm is is unknown now: it must be homed again.
+                    self.commanded_counts = None;
+                }
+                Err(error_mode(t, status, joints_deg))
+            }
+        }
+    }
+
+    fn check_where(&mut self, q: &[f64], timeout: Duration) -> Result<(), DeviceError> {
+        if self.cfg.where_tolerance_mm <= 0.0 {
+            return Ok(());
+        }
+        let pose = self.where_pose(timeout)?;
+        let e = ErrorParams::zeros(self.chain.layout());
+        let p = self.chain.position(q, &e);
+        let r = nalgebra::Vector3::from(pose.xyz_mm);
+        let d = (p - r).norm();
+        if d > self.cfg.where_tolerance_mm {
+            return Err(DeviceError::PoseMismatch {
+                expected: [p.x, p.y, p.z],
+                reported: pose.xyz_mm,
+                distance_mm: d,
+                tolerance_mm: self.cfg.where_tolerance_mm,
+            });
+        }
+        Ok(())
+    }
+}
+
+fn error_mode(command: String, status: ErrorStatus, joints_deg: Option<Vec<f64>>) -> DeviceError {
+    let (code, meaning, advice) = match status {
+        ErrorStatus::Hardware => (
+            1,
+            "hardware error",
+            "the driver will not reset it: have the operator clear the cause and reset the controller, then home again",
+        ),
+        _ => (
+            2,
+            "position out of range or command format",
+            "the move was not executed; `reset` clears it",
+        ),
+    };
+    DeviceError::ArmErrorMode {
+        command,
+        code,
+        meaning,
+        joints_deg,
+        advice,
+    }
+}
+
+impl<T: ByteTransport> Arm for MovemasterArm<T> {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.command(&Command::Nest, timeout)?;
+        let nest: Vec<f64> = self.cfg.nest_deg.iter().map(|d| d.to_radians()).collect();
+        let deg = self.controller_deg(&nest);
+        let mut counts = [0i64; 5];
+        for (c, d) in counts.iter_mut().zip(deg) {
+            *c = self
+                .resolution
+                .to_counts(d)
+                .map_err(|e| DeviceError::Config {
+                    key: "arm.nest_deg".into(),
+                    reason: e.to_string(),
+                })?;
+        }
+        self.commanded_counts = Some(counts);
+        let q = self.counts_to_q(&counts);
+        if let Ok(level) = SpeedLevel::new(self.cfg.speed) {
+            self.command(&Command::Speed { level, accel: None }, timeout)?;
+        }
+        Ok(q)
+    }
+
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        let level = SpeedLevel::new(level).map_err(|e| DeviceError::Config {
+            key: "arm.speed".into(),
+            reason: e.to_string(),
+        })?;
+        self.command(&Command::Speed { level, accel: None }, timeout)
+    }
+
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        let Some(old) = self.commanded_counts else {
+            return Err(DeviceError::NotReady {
+                device: DeviceName::Arm,
+                detail: "joint positions unknown: home the arm (NT) first".into(),
+            });
+        };
+        if q.len() != 5 {
+            return Err(DeviceError::Config {
+                key: "arm".into(),
+                reason: format!("a move needs 5 joint values, got {}", q.len()),
+            });
+        }
+        let target = self.controller_deg(q);
+        let (mut cmd, counts) =
+            quantise_joint_move(&target, &old, self.resolution).map_err(|e| {
+                DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request: "MJ".into(),
+                    detail: e.to_string(),
+                }
+            })?;
+        let moving: Vec<usize> = (0..5).filter(|&k| counts[k] != old[k]).collect();
+        if moving.is_empty() {
+            return Ok(self.counts_to_q(&old));
+        }
+        if let [k] = moving.as_slice() {
+            let joint = JointNumber::new(*k as u8 + 1).map_err(|e| DeviceError::Config {
+                key: "arm".into(),
+                reason: e.to_string(),
+            })?;
+            let angle =
+                Decimal::from_counts(counts[*k] - old[*k], self.resolution).map_err(|e| {
+                    DeviceError::Protocol {
+                        device: DeviceName::Arm,
+                        request: "DJ".into(),
+                        detail: e.to_string(),
+                    }
+                })?;
+            cmd = Command::MoveJoint { joint, angle };
+        }
+        self.command(&cmd, timeout)?;
+        self.commanded_counts = Some(counts);
+        let done = self.counts_to_q(&counts);
+        self.check_where(&done, timeout)?;
+        Ok(done)
+    }
+
+    fn commanded(&self) -> Option<Vec<f64>> {
+        self.commanded_counts.as_ref().map(|c| self.counts_to_q(c))
+    }
+
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.io.clear_input().map_err(|e| self.transport(e))?;
+        self.framer = LineFramer::default();
+        self.lines.clear();
+        self.send(&Command::Where)?;
+        let line = self.read_line("WH", timeout)?;
+        let w = WhereReply::decode_body(&line).map_err(|e| DeviceError::Protocol {
+            device: DeviceName::Arm,
+            request: "WH".into(),
+            detail: e.to_string(),
+        })?;
+        Ok(ArmPose {
+            xyz_mm: [w.x, w.y, w.z],
+            pitch_deg: w.pitch,
+            roll_deg: w.roll,
+        })
+    }
+
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        Ok(match self.read_status("status query", timeout)? {
+            ErrorStatus::None => ArmStatus::Ok,
+            ErrorStatus::Hardware => ArmStatus::HardwareError,
+            ErrorStatus::Position => ArmStatus::PositionError,
+        })
+    }
+
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        match self.read_status("reset", timeout)? {
+            ErrorStatus::None => Ok(()),
+            ErrorStatus::Hardware => Err(DeviceError::ResetNotSafe {
+                device: DeviceName::Arm,
+                reason: "error mode I (hardware): the cause must be cleared by the operator, and the arm homed again".into(),
+            }),
+            ErrorStatus::Position => self.command(&Command::Reset, timeout),
+        }
+    }
+}

@@ -1,0 +1,498 @@
+//! Simulated back-ends that speak each device's protocol byte for byte (or frame for frame),
+//! take their physics from a [`RigPhysics`], and keep time on a [`Clock`].
+//!
+//! Each emulator is a state machine fed with input at a time and asked for the output due at a
+//! time ([`ByteEmulator`], [`FrameEmulator`]). Two ways to run one:
+//! - **polled** behind [`PolledSerial`] / [`PolledCan`]: the driver's own reads drive the
+//!   emulator; while the driver waits, the link advances the clock to the emulator's next event
+//!   (or to the end of the timeout). On a [`VirtualClock`](crate::devices::clock::VirtualClock)
+//!   this is a deterministic discrete-event simulation; on real time it sleeps.
+//! - **served** in a thread behind any [`ByteTransport`] (a pseudo-terminal, a pipe) with
+//!   [`serve_bytes`], or behind a [`CanBus`] with [`serve_frames`]; the table speaks slcan on a
+//!   byte transport through [`SlcanAdapter`].
+//!
+//! Fault injection is per emulator, through its shared `faults` handle.
+
+pub mod arm;
+pub mod panel;
+pub mod physics;
+pub mod table;
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use nalgebra::Vector3;
+
+use crate::devices::clock::SharedClock;
+use crate::protocols::can::CanFrame;
+use crate::protocols::slcan::{SlcanDecoder, SlcanMessage};
+use crate::transports::{ByteTransport, CanBus, TransportError};
+
+pub use physics::{NominalPhysics, PinState, RigPhysics, SharedPhysics};
+
+/// An emulated byte-stream device.
+pub trait ByteEmulator: Send {
+    /// Bytes from the host, received at `now`.
+    fn input(&mut self, bytes: &[u8], now: Duration);
+    /// Bytes due for the host at or before `now`.
+    fn output(&mut self, now: Duration) -> Vec<u8>;
+    /// The earliest time after `now`, not later than `horizon`, at which output may become due.
+    fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration>;
+}
+
+/// An emulated CAN device (or several on one bus).
+pub trait FrameEmulator: Send {
+    /// A frame from the bus, received at `now`.
+    fn input(&mut self, frame: &CanFrame, now: Duration);
+    /// Frames due on the bus at or before `now`.
+    fn output(&mut self, now: Duration) -> Vec<CanFrame>;
+    /// The earliest time after `now`, not later than `horizon`, at which output may become due.
+    fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration>;
+}
+
+/// Locks a mutex, ignoring poisoning (the data stays usable for simulations).
+pub(crate) fn lock<T: ?Sized>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The smallest step the links take so that a zero-length event never stalls them.
+const MIN_STEP: Duration = Duration::from_micros(1);
+
+/// A [`ByteTransport`] whose far end is an emulator, driven by the reads.
+#[derive(Debug)]
+pub struct PolledSerial<E: ByteEmulator> {
+    emulator: E,
+    clock: SharedClock,
+    pending: VecDeque<u8>,
+}
+
+impl<E: ByteEmulator> PolledSerial<E> {
+    /// Connects to `emulator` on `clock`.
+    pub fn new(emulator: E, clock: SharedClock) -> Self {
+        PolledSerial {
+            emulator,
+            clock,
+            pending: VecDeque::new(),
+        }
+    }
+}
+
+impl<E: ByteEmulator> ByteTransport for PolledSerial<E> {
+    fn write_all(&mut self, bytes: &[u8]) -> Result<(), TransportError> {
+        self.emulator.input(bytes, self.clock.now());
+        Ok(())
+    }
+
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> Result<usize, TransportError> {
+        if buf.is_empty() {
+            return Ok(0);
+        }
+        let start = self.clock.now();
+        let deadline = start + timeout;
+        loop {
+            let now = self.clock.now();
+            self.pending.extend(self.emulator.output(now));
+            if !self.pending.is_empty() {
+                let n = buf.len().min(self.pending.len());
+                for (slot, b) in buf.iter_mut().zip(self.pending.drain(..n)) {
+                    *slot = b;
+                }
+                return Ok(n);
+            }
+            if now >= deadline {
+                return Err(TransportError::Timeout {
+                    waited: now.saturating_sub(start),
+                });
+            }
+            match self.emulator.next_event(now, deadline) {
+                Some(t) if t <= deadline => self.clock.advance_to(t.max(now + MIN_STEP)),
+                _ => self.clock.advance_to(deadline),
+            }
+        }
+    }
+
+    fn clear_input(&mut self) -> Result<(), TransportError> {
+        let now = self.clock.now();
+        self.emulator.output(now);
+        self.pending.clear();
+        Ok(())
+    }
+}
+
+/// A [`CanBus`] whose other nodes are an emulator, driven by the receives.
+#[derive(Debug)]
+pub struct PolledCan<E: FrameEmulator> {
+    emulator: E,
+    clock: SharedClock,
+    pending: VecDeque<CanFrame>,
+}
+
+impl<E: FrameEmulator> PolledCan<E> {
+    /// Connects to `emulator` on `clock`.
+    pub fn new(emulator: E, clock: SharedClock) -> Self {
+        PolledCan {
+            emulator,
+            clock,
+            pending: VecDeque::new(),
+        }
+    }
+}
+
+impl<E: FrameEmulator> CanBus for PolledCan<E> {
+    fn send(&mut self, frame: &CanFrame) -> Result<(), TransportError> {
+        self.emulator.input(frame, self.clock.now());
+        Ok(())
+    }
+
+    fn recv(&mut self, timeout: Duration) -> Result<CanFrame, TransportError> {
+        let start = self.clock.now();
+        let deadline = start + timeout;
+        loop {
+            let now = self.clock.now();
+            self.pending.extend(self.emulator.output(now));
+            if let Some(f) = self.pending.pop_front() {
+                return Ok(f);
+            }
+            if now >= deadline {
+                return Err(TransportError::Timeout {
+                    waited: now.saturating_sub(start),
+                });
+            }
+            match self.emulator.next_event(now, deadline) {
+                Some(t) if t <= deadline => self.clock.advance_to(t.max(now + MIN_STEP)),
+                _ => self.clock.advance_to(deadline),
+            }
+        }
+    }
+}
+
+/// A running emulator thread; stops (and is joined) when dropped.
+#[derive(Debug)]
+pub struct Served {
+    stop: Arc<AtomicBool>,
+    handle: Option<JoinHandle<()>>,
+}
+
+impl Served {
+    /// Asks the thread to stop and waits for it.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+
+    fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::SeqCst);
+        if let Some(h) = self.handle.take() {
+            let _ = h.join();
+        }
+    }
+}
+
+impl Drop for Served {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+/// Longest a serving thread sleeps between looks at its stop flag and its clock.
+const SERVE_TICK: Duration = Duration::from_millis(1);
+
+/// Serves `emulator` on `io` (a pseudo-terminal, a pipe) in a thread, on real time.
+pub fn serve_bytes<E, T>(mut emulator: E, mut io: T, clock: SharedClock) -> Served
+where
+    E: ByteEmulator + 'static,
+    T: ByteTransport + 'static,
+{
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let handle = std::thread::spawn(move || {
+        let mut buf = [0u8; 256];
+        while !flag.load(Ordering::SeqCst) {
+            let now = clock.now();
+            let out = emulator.output(now);
+            if !out.is_empty() && io.write_all(&out).is_err() {
+                return;
+            }
+            let wait = emulator
+                .next_event(now, now + SERVE_TICK)
+                .map_or(SERVE_TICK, |t| t.saturating_sub(now).min(SERVE_TICK));
+            match io.read(&mut buf, wait) {
+                Ok(n) => emulator.input(buf.get(..n).unwrap_or(&[]), clock.now()),
+                Err(TransportError::Timeout { .. }) => {}
+                Err(_) => return,
+            }
+        }
+    });
+    Served {
+        stop,
+        handle: Some(handle),
+    }
+}
+
+/// Serves `emulator` on a CAN bus (e.g. a [`SimBusEndpoint`](crate::transports::SimBusEndpoint))
+/// in a thread, on real time.
+pub fn serve_frames<E, B>(mut emulator: E, mut bus: B, clock: SharedClock) -> Served
+where
+    E: FrameEmulator + 'static,
+    B: CanBus + 'static,
+{
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = Arc::clone(&stop);
+    let handle = std::thread::spawn(move || {
+        while !flag.load(Ordering::SeqCst) {
+            let now = clock.now();
+            for f in emulator.output(now) {
+                if bus.send(&f).is_err() {
+                    return;
+                }
+            }
+            let wait = emulator
+                .next_event(now, now + SERVE_TICK)
+                .map_or(SERVE_TICK, |t| t.saturating_sub(now).min(SERVE_TICK));
+            match bus.recv(wait) {
+                Ok(f) => emulator.input(&f, clock.now()),
+                Err(TransportError::Timeout { .. }) => {}
+                Err(_) => return,
+            }
+        }
+    });
+    Served {
+        stop,
+        handle: Some(handle),
+    }
+}
+
+/// An slcan USB-CAN adapter with the emulated drives behind it: decodes the host's slcan lines,
+/// answers commands (`O`, `C`, `Sn`, `V`, `F`, `Zn`) with OK, passes frames to the drives
+/// (acknowledging each with `z\r`), and encodes the drives' frames as slcan lines.
+#[derive(Debug)]
+pub struct SlcanAdapter<E: FrameEmulator> {
+    drives: E,
+    decoder: SlcanDecoder,
+    open: bool,
+    out: Vec<u8>,
+}
+
+impl<E: FrameEmulator> SlcanAdapter<E> {
+    /// An adapter (channel closed) in front of `drives`.
+    pub fn new(drives: E) -> Self {
+        SlcanAdapter {
+            drives,
+            decoder: SlcanDecoder::default(),
+            open: false,
+            out: Vec::new(),
+        }
+    }
+}
+
+impl<E: FrameEmulator> ByteEmulator for SlcanAdapter<E> {
+    fn input(&mut self, bytes: &[u8], now: Duration) {
+        for msg in self.decoder.push(bytes) {
+            let reply = match msg {
+                Ok(SlcanMessage::Frame { frame, .. }) if self.open => {
+                    self.drives.input(&frame, now);
+                    SlcanMessage::TransmitAck {
+                        extended: frame.is_extended(),
+                    }
+                }
+                Ok(SlcanMessage::Open) => {
+                    self.open = true;
+                    SlcanMessage::Ok
+                }
+                Ok(SlcanMessage::Close) => {
+                    self.open = false;
+                    SlcanMessage::Ok
+                }
+                Ok(SlcanMessage::SetBitrate(_)) if !self.open => SlcanMessage::Ok,
+                Ok(SlcanMessage::SetTimestamps(_)) => SlcanMessage::Ok,
+                Ok(SlcanMessage::ReadVersion) => SlcanMessage::Version(*b"1010"),
+                Ok(SlcanMessage::ReadStatusFlags) => SlcanMessage::StatusFlags(0),
+                _ => SlcanMessage::Error,
+            };
+            self.out.extend(reply.encode());
+        }
+    }
+
+    fn output(&mut self, now: Duration) -> Vec<u8> {
+        let mut out = std::mem::take(&mut self.out);
+        for f in self.drives.output(now) {
+            if self.open {
+                out.extend(SlcanMessage::frame(f).encode());
+            }
+        }
+        out
+    }
+
+    fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration> {
+        if !self.out.is_empty() {
+            return Some(now);
+        }
+        self.drives.next_event(now, horizon)
+    }
+}
+
+/// A trapezoidal (or triangular) position profile of one axis, in mm and seconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Profile {
+    /// Start time.
+    pub t0: Duration,
+    /// Start position (mm).
+    pub from: f64,
+    /// End position (mm).
+    pub to: f64,
+    /// Cruise speed reached (mm/s).
+    pub v: f64,
+    /// Acceleration (mm/s²).
+    pub acc: f64,
+    /// Deceleration (mm/s²).
+    pub dec: f64,
+}
+
+impl Profile {
+    /// Standing still at `p`.
+    pub fn still(p: f64) -> Self {
+        Profile {
+            t0: Duration::ZERO,
+            from: p,
+            to: p,
+            v: 1.0,
+            acc: 1.0,
+            dec: 1.0,
+        }
+    }
+
+    /// A move from `from` to `to` starting at `t0` with at most `vmax`, `acc`, `dec` (all > 0).
+    pub fn new(t0: Duration, from: f64, to: f64, vmax: f64, acc: f64, dec: f64) -> Self {
+        let d = (to - from).abs();
+        let (acc, dec, vmax) = (acc.max(1e-9), dec.max(1e-9), vmax.max(1e-9));
+        let v = if vmax * vmax / (2.0 * acc) + vmax * vmax / (2.0 * dec) > d {
+            (2.0 * d * acc * dec / (acc + dec)).sqrt()
+        } else {
+            vmax
+        };
+        Profile {
+            t0,
+            from,
+            to,
+            v: v.max(1e-12),
+            acc,
+            dec,
+        }
+    }
+
+    fn phases(&self) -> (f64, f64, f64) {
+        let d = (self.to - self.from).abs();
+        let ta = self.v / self.acc;
+        let td = self.v / self.dec;
+        let da = self.v * ta / 2.0;
+        let dd = self.v * td / 2.0;
+        let tc = ((d - da - dd) / self.v).max(0.0);
+        (ta, tc, td)
+    }
+
+    /// Duration of the move (s).
+    pub fn duration_s(&self) -> f64 {
+        if self.from == self.to {
+            return 0.0;
+        }
+        let (ta, tc, td) = self.phases();
+        ta + tc + td
+    }
+
+    /// End time.
+    pub fn end(&self) -> Duration {
+        self.t0 + Duration::from_secs_f64(self.duration_s())
+    }
+
+    /// Position at `t` (mm).
+    pub fn position(&self, t: Duration) -> f64 {
+        if self.from == self.to || t <= self.t0 {
+            return self.from;
+        }
+        let s = (t - self.t0).as_secs_f64();
+        let (ta, tc, td) = self.phases();
+        let dist = if s < ta {
+            0.5 * self.acc * s * s
+        } else if s < ta + tc {
+            0.5 * self.v * ta + self.v * (s - ta)
+        } else if s < ta + tc + td {
+            let r = ta + tc + td - s;
+            (self.to - self.from).abs() - 0.5 * self.dec * r * r
+        } else {
+            (self.to - self.from).abs()
+        };
+        self.from + dist * (self.to - self.from).signum()
+    }
+
+    /// Speed at `t` (mm/s, magnitude).
+    pub fn speed(&self, t: Duration) -> f64 {
+        if self.from == self.to || t <= self.t0 {
+            return 0.0;
+        }
+        let s = (t - self.t0).as_secs_f64();
+        let (ta, tc, td) = self.phases();
+        if s < ta {
+            self.acc * s
+        } else if s < ta + tc {
+            self.v
+        } else if s < ta + tc + td {
+            self.dec * (ta + tc + td - s)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The table's true axis motion, shared by the table emulator (which writes it) and the panel
+/// emulator (which reads where the panel is). Table frame, mm.
+#[derive(Debug, Clone)]
+pub struct TableTruth {
+    /// Per axis x, y, z.
+    pub axes: [Profile; 3],
+}
+
+impl TableTruth {
+    /// Standing at `p`.
+    pub fn at(p: [f64; 3]) -> Self {
+        TableTruth {
+            axes: [
+                Profile::still(p[0]),
+                Profile::still(p[1]),
+                Profile::still(p[2]),
+            ],
+        }
+    }
+
+    /// The table position at `t` (mm).
+    pub fn position(&self, t: Duration) -> Vector3<f64> {
+        Vector3::new(
+            self.axes[0].position(t),
+            self.axes[1].position(t),
+            self.axes[2].position(t),
+        )
+    }
+}
+
+/// The shared [`TableTruth`].
+pub type SharedTable = Arc<Mutex<TableTruth>>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn trapezoid_reaches_target_with_limited_speed() {
+        let p = Profile::new(Duration::from_secs(1), 10.0, 110.0, 50.0, 100.0, 200.0);
+        // 0.5 s accel (12.5 mm), 0.25 s decel (6.25 mm), cruise 81.25 mm at 50 mm/s.
+        assert!((p.duration_s() - (0.5 + 0.25 + 81.25 / 50.0)).abs() < 1e-9);
+        assert_eq!(p.position(Duration::from_secs(1)), 10.0);
+        assert!((p.position(Duration::from_millis(1500)) - 22.5).abs() < 1e-9);
+        assert!((p.position(p.end()) - 110.0).abs() < 1e-9);
+        assert!(p.speed(Duration::from_secs(2)) <= 50.0 + 1e-9);
+        let tri = Profile::new(Duration::ZERO, 0.0, -1.0, 50.0, 100.0, 100.0);
+        assert!(tri.v < 50.0);
+        assert!((tri.position(tri.end()) + 1.0).abs() < 1e-9);
+    }
+}

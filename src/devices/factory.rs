@@ -1,0 +1,320 @@
+//! The one switch point: a rig file (and a choice between its transports and an all-simulated
+//! rig) in, the three boxed devices out, each wrapped in its safety limits.
+//!
+//! Transports per device come from `[devices]`: `sim` (an emulator behind a polled link), a
+//! serial port path (arm, panel), `can0` / `socketcan:can0` or `slcan:/dev/ttyACM0` (table).
+//! Nothing else differs between a dry run and the rig; no cargo feature chooses.
+
+use std::sync::{Arc, Mutex};
+
+use crate::devices::arm_movemaster::MovemasterArm;
+use crate::devices::clock::{RealClock, SharedClock, VirtualClock};
+use crate::devices::config::{DevicesConfig, TableConfig};
+use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
+use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
+use crate::devices::emulators::table::{TableEmulator, TableFaultHandle};
+use crate::devices::emulators::{
+    NominalPhysics, PolledCan, PolledSerial, SharedPhysics, SharedTable, TableTruth,
+};
+use crate::devices::panel_penmount::PenMountPanel;
+use crate::devices::safety::{LimitedArm, LimitedTable};
+use crate::devices::table_canopen::CanOpenTable;
+use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, Table};
+use crate::rig::{Instrument, Rig, TablePanel};
+use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
+
+/// The simulated world the emulators use.
+#[derive(Clone)]
+pub struct SimSetup {
+    /// The physics (true arm, true table registration).
+    pub physics: SharedPhysics,
+    /// The clock shared by emulators and drivers.
+    pub clock: SharedClock,
+    /// Where the table stands at power-on (mm, table frame).
+    pub table_start_mm: [f64; 3],
+}
+
+impl std::fmt::Debug for SimSetup {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SimSetup")
+            .field("clock", &self.clock)
+            .field("table_start_mm", &self.table_start_mm)
+            .finish_non_exhaustive()
+    }
+}
+
+impl SimSetup {
+    /// The rig's nominal arm without errors, on a virtual clock, the table centred in x and y
+    /// and at the bottom of z.
+    pub fn nominal(rig: &Rig) -> Self {
+        let start = match &rig.instrument {
+            Instrument::TablePanel(t) => [t.travel_mm.x / 2.0, t.travel_mm.y / 2.0, 0.0],
+            _ => [0.0; 3],
+        };
+        SimSetup {
+            physics: NominalPhysics::nominal(rig).shared(),
+            clock: VirtualClock::shared(),
+            table_start_mm: start,
+        }
+    }
+}
+
+/// Which back-ends to use.
+#[derive(Debug, Clone)]
+pub enum Backend {
+    /// What the rig file's `[devices]` says per device (`sim` entries use a nominal world on a
+    /// virtual clock if every device is simulated, on real time otherwise).
+    RigFile,
+    /// Every device simulated in `SimSetup`'s world, whatever the rig file says.
+    Simulated(SimSetup),
+}
+
+/// Handles to the emulators of a simulated rig: fault injection and inspection.
+#[derive(Debug, Clone)]
+pub struct SimControls {
+    /// Arm faults and log.
+    pub arm: Option<ArmFaultHandle>,
+    /// Table faults and counters.
+    pub table: Option<TableFaultHandle>,
+    /// Panel faults and counters.
+    pub panel: Option<PanelFaultHandle>,
+    /// The table's true motion.
+    pub table_truth: SharedTable,
+    /// The physics.
+    pub physics: SharedPhysics,
+}
+
+/// The three devices of a rig.
+pub struct RigDevices {
+    /// The arm (joint limits enforced).
+    pub arm: Box<dyn Arm>,
+    /// The table (travel and ascending z enforced).
+    pub table: Box<dyn Table>,
+    /// The touch panel.
+    pub panel: Box<dyn Panel>,
+    /// The clock the drivers use.
+    pub clock: SharedClock,
+    /// Emulator handles when any device is simulated.
+    pub sim: Option<SimControls>,
+}
+
+impl std::fmt::Debug for RigDevices {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("RigDevices")
+            .field("clock", &self.clock)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The three emulators of a rig, sharing one world.
+#[derive(Debug)]
+pub struct SimEmulators {
+    /// The Movemaster controller.
+    pub arm: ArmEmulator,
+    /// The three drives.
+    pub table: TableEmulator,
+    /// The PenMount controller.
+    pub panel: PanelEmulator,
+    /// The table's true motion.
+    pub table_truth: SharedTable,
+}
+
+/// The rig's table-and-panel instrument, or a configuration error.
+pub fn table_panel(rig: &Rig) -> Result<&TablePanel, DeviceError> {
+    match &rig.instrument {
+        Instrument::TablePanel(t) => Ok(t),
+        _ => Err(DeviceError::Config {
+            key: "table".into(),
+            reason: "the rig's instrument is not kind = \"table_panel\"; the devices need the table and panel".into(),
+        }),
+    }
+}
+
+/// Builds the three emulators for `rig` in `setup`'s world.
+pub fn sim_emulators(
+    rig: &Rig,
+    cfg: &DevicesConfig,
+    setup: &SimSetup,
+) -> Result<SimEmulators, DeviceError> {
+    let tp = table_panel(rig)?;
+    let truth: SharedTable = Arc::new(Mutex::new(TableTruth::at(setup.table_start_mm)));
+    Ok(SimEmulators {
+        arm: ArmEmulator::new(rig, &cfg.arm, Arc::clone(&setup.physics)),
+        table: TableEmulator::new(&cfg.table, Arc::clone(&truth)),
+        panel: PanelEmulator::new(
+            tp,
+            &cfg.panel,
+            Arc::clone(&setup.physics),
+            Arc::clone(&truth),
+        ),
+        table_truth: truth,
+    })
+}
+
+fn open_serial(
+    device: &str,
+    path: &str,
+    s: &SerialSettings,
+) -> Result<SerialTransport, DeviceError> {
+    SerialTransport::open(path, s).map_err(|source| DeviceError::Transport {
+        device: match device {
+            "arm" => DeviceName::Arm,
+            "panel" => DeviceName::Panel,
+            _ => DeviceName::Table,
+        },
+        source,
+    })
+}
+
+fn open_can(t: &TableConfig) -> Result<Box<dyn CanBus>, DeviceError> {
+    let tr = t.transport.trim();
+    let err = |source| DeviceError::Transport {
+        device: DeviceName::Table,
+        source,
+    };
+    if let Some(path) = tr.strip_prefix("slcan:") {
+        let line = SerialSettings {
+            baud: t.slcan_baud,
+            data_bits: 8,
+            parity: Parity::None,
+            stop_bits: 1,
+            flow: FlowControl::None,
+        };
+        let io = open_serial("table", path, &line)?;
+        return Ok(Box::new(SlcanBus::open(io, t.slcan).map_err(err)?));
+    }
+    let ifname = tr.strip_prefix("socketcan:").unwrap_or(tr);
+    #[cfg(target_os = "linux")]
+    {
+        Ok(Box::new(
+            crate::transports::SocketCanBus::open(ifname).map_err(err)?,
+        ))
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        Err(DeviceError::Config {
+            key: "table.transport".into(),
+            reason: format!("SocketCAN ({ifname}) exists only on Linux; use \"slcan:PORT\""),
+        })
+    }
+}
+
+fn is_sim(t: &str) -> bool {
+    t.trim() == "sim"
+}
+
+/// Opens the rig's three devices.
+pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
+    let cfg = rig.devices.clone().unwrap_or_default();
+    cfg.validate()
+        .map_err(|(key, reason)| DeviceError::Config { key, reason })?;
+    let tp = table_panel(rig)?.clone();
+    let (sim_arm, sim_table, sim_panel, setup) = match backend {
+        Backend::Simulated(setup) => (true, true, true, setup),
+        Backend::RigFile => {
+            let (a, t, p) = (
+                is_sim(&cfg.arm.transport),
+                is_sim(&cfg.table.transport),
+                is_sim(&cfg.panel.transport),
+            );
+            let mut setup = SimSetup::nominal(rig);
+            if !(a && t && p) {
+                setup.clock = RealClock::shared();
+            }
+            (a, t, p, setup)
+        }
+    };
+    let clock = Arc::clone(&setup.clock);
+    let any_sim = sim_arm || sim_table || sim_panel;
+    let emus = if any_sim {
+        Some(sim_emulators(rig, &cfg, &setup)?)
+    } else {
+        None
+    };
+    let mut controls = emus.as_ref().map(|e| SimControls {
+        arm: None,
+        table: None,
+        panel: None,
+        table_truth: Arc::clone(&e.table_truth),
+        physics: Arc::clone(&setup.physics),
+    });
+    let (emu_arm, emu_table, emu_panel) = match emus {
+        Some(e) => (Some(e.arm), Some(e.table), Some(e.panel)),
+        None => (None, None, None),
+    };
+
+    let arm: Box<dyn Arm> = match emu_arm.filter(|_| sim_arm) {
+        Some(e) => {
+            if let Some(c) = controls.as_mut() {
+                c.arm = Some(e.faults());
+            }
+            let io = PolledSerial::new(e, Arc::clone(&clock));
+            Box::new(MovemasterArm::new(
+                io,
+                rig.chain.clone(),
+                &cfg.arm,
+                Arc::clone(&clock),
+            )?)
+        }
+        None => {
+            let io = open_serial("arm", &cfg.arm.transport, &cfg.arm.serial)?;
+            Box::new(MovemasterArm::new(
+                io,
+                rig.chain.clone(),
+                &cfg.arm,
+                Arc::clone(&clock),
+            )?)
+        }
+    };
+    let table: Box<dyn Table> = match emu_table.filter(|_| sim_table) {
+        Some(e) => {
+            if let Some(c) = controls.as_mut() {
+                c.table = Some(e.faults());
+            }
+            let bus = PolledCan::new(e, Arc::clone(&clock));
+            Box::new(CanOpenTable::new(bus, &cfg.table, Arc::clone(&clock))?)
+        }
+        None => Box::new(CanOpenTable::new(
+            open_can(&cfg.table)?,
+            &cfg.table,
+            Arc::clone(&clock),
+        )?),
+    };
+    let panel: Box<dyn Panel> = match emu_panel.filter(|_| sim_panel) {
+        Some(e) => {
+            if let Some(c) = controls.as_mut() {
+                c.panel = Some(e.faults());
+            }
+            let io = PolledSerial::new(e, Arc::clone(&clock));
+            Box::new(PenMountPanel::new(
+                io,
+                tp.panel_size_mm,
+                tp.panel_counts,
+                &cfg.panel,
+                Arc::clone(&clock),
+            ))
+        }
+        None => {
+            let io = open_serial("panel", &cfg.panel.transport, &cfg.panel.serial)?;
+            Box::new(PenMountPanel::new(
+                io,
+                tp.panel_size_mm,
+                tp.panel_counts,
+                &cfg.panel,
+                Arc::clone(&clock),
+            ))
+        }
+    };
+    use crate::kinematics::Robot;
+    Ok(RigDevices {
+        arm: Box::new(LimitedArm::new(arm, rig.chain.joints().to_vec())),
+        table: Box::new(LimitedTable::new(
+            table,
+            [tp.travel_mm.x, tp.travel_mm.y, tp.travel_mm.z],
+            cfg.table.pass_retract_mm,
+        )),
+        panel,
+        clock,
+        sim: controls,
+    })
+}

@@ -1,0 +1,36 @@
+//! Rig devices: the RV-M2 arm (Movemaster over RS-232), the x-y-z table (three CiA 402 drives
+//! on CANopen) and the PenMount touch panel (serial), each behind a small trait.
+//!
+//! | module | holds |
+//! |---|---|
+//! | [`traits`] | [`Arm`], [`Table`], [`Panel`] and [`DeviceError`] |
+//! | [`config`] | the rig file's `[devices]` section |
+//! | [`arm_movemaster`], [`table_canopen`], [`panel_penmount`] | drivers over any transport |
+//! | [`safety`] | joint limits, table travel, ascending z: refused before a byte is sent |
+//! | [`contact`] | the contact measurement and the approach-speed rule |
+//! | [`factory`] | the one switch point: rig file → the three boxed devices |
+//! | [`clock`] | real time and a shared virtual clock |
+//! | [`emulators`] | simulated back-ends speaking each protocol, with fault injection |
+//!
+//! Units: joints in radians, table and panel in millimetres, times as [`std::time::Duration`]
+//! on a [`clock::Clock`]. The session code cannot tell simulated devices from real ones.
+
+pub mod arm_movemaster;
+pub mod clock;
+pub mod config;
+pub mod contact;
+pub mod emulators;
+pub mod factory;
+pub mod panel_penmount;
+pub mod safety;
+pub mod table_canopen;
+pub mod traits;
+
+pub use config::DevicesConfig;
+pub use factory::{open_devices, Backend, RigDevices, SimControls, SimSetup};
+pub use traits::{
+    Arm, ArmPose, ArmStatus, DeviceError, DeviceErrorKind, DeviceName, Panel, PanelStats, Table,
+    Touch,
+};
+#[cfg(any(test, feature = "mock"))]
+pub use traits::{MockArm, MockPanel, MockTable};

@@ -1,0 +1,441 @@
+//! The device traits the session code uses — [`Arm`], [`Table`], [`Panel`] — and their error
+//! type [`DeviceError`].
+//!
+//! Units: joint values in radians (internal units of the rig's chain), table positions in
+//! millimetres in the table frame (the panel centre), panel offsets in millimetres along table
+//! +x (u) and +y (v). Every call that waits takes a timeout and ends in
+//! [`DeviceError::Timeout`], which carries what was awaited, the target and the last known state.
+//! Traits are small, synchronous and object-safe; the factory hands them out as `Box<dyn …>`,
+//! and nothing in them tells a simulated device from a real one.
+
+use std::time::Duration;
+
+use thiserror::Error;
+
+use crate::protocols::canopen::SdoAbortCode;
+use crate::transports::TransportError;
+
+/// Which device an error concerns.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum DeviceName {
+    /// The RV-M2 arm.
+    Arm,
+    /// The x-y-z table.
+    Table,
+    /// The touch panel.
+    Panel,
+}
+
+impl std::fmt::Display for DeviceName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            DeviceName::Arm => "arm",
+            DeviceName::Table => "table",
+            DeviceName::Panel => "panel",
+        })
+    }
+}
+
+/// Coarse classification of a [`DeviceError`], for callers that branch.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum DeviceErrorKind {
+    /// A wait ran out.
+    Timeout,
+    /// The byte or frame transport failed.
+    Transport,
+    /// The device answered something unintelligible.
+    Protocol,
+    /// The device reports a fault (error mode, drive fault, following error, lost heartbeat).
+    DeviceFault,
+    /// A safety wrapper refused the command before anything was sent.
+    Refused,
+    /// No contact where one was expected.
+    Measurement,
+    /// The device is not in a state that allows the call (not homed, not enabled).
+    NotReady,
+    /// The rig file's device settings are unusable.
+    Config,
+}
+
+/// Everything that can go wrong talking to a rig device.
+#[derive(Debug, Error)]
+#[non_exhaustive]
+pub enum DeviceError {
+    /// Nothing (or not the awaited state) arrived in time.
+    #[error("{device}: timed out after {waited:?} waiting for {waiting_for} (target {target}, last state {current}); check cabling and power, or raise the timeout")]
+    Timeout {
+        /// The device.
+        device: DeviceName,
+        /// What was awaited.
+        waiting_for: String,
+        /// How long was waited (clock time).
+        waited: Duration,
+        /// The target of the operation.
+        target: String,
+        /// The last state seen.
+        current: String,
+    },
+    /// The transport failed.
+    #[error("{device}: transport failed: {source}")]
+    Transport {
+        /// The device.
+        device: DeviceName,
+        /// The cause.
+        source: TransportError,
+    },
+    /// A reply could not be understood (garbled, wrong framing, unexpected answer).
+    #[error("{device}: unintelligible reply to {request}: {detail}; retry, and check baud rate and framing if it persists")]
+    Protocol {
+        /// The device.
+        device: DeviceName,
+        /// What was asked.
+        request: String,
+        /// What went wrong.
+        detail: String,
+    },
+    /// The Movemaster controller entered an error mode (`ER` ≠ 0) after a command.
+    #[error("arm controller in error mode {code} ({meaning}) after `{command}`; joints last commanded {joints_deg:?} deg; {advice}")]
+    ArmErrorMode {
+        /// The command that caused it, as sent.
+        command: String,
+        /// The `ER` code (1 hardware, 2 position/format).
+        code: u8,
+        /// Meaning of the code.
+        meaning: &'static str,
+        /// Joints last commanded successfully (D-H degrees), if known.
+        joints_deg: Option<Vec<f64>>,
+        /// What to do.
+        advice: &'static str,
+    },
+    /// A reset was refused because it is not safe.
+    #[error("{device}: reset refused: {reason}")]
+    ResetNotSafe {
+        /// The device.
+        device: DeviceName,
+        /// Why.
+        reason: String,
+    },
+    /// A drive answered an SDO with an abort.
+    #[error("table drive node {node}: SDO {access} of {index:#06x}:{sub} aborted: {code:?} ({description})")]
+    SdoAbort {
+        /// Node id.
+        node: u8,
+        /// `read` or `write`.
+        access: &'static str,
+        /// Object index.
+        index: u16,
+        /// Sub-index.
+        sub: u8,
+        /// Abort code.
+        code: SdoAbortCode,
+        /// CiA 301 description.
+        description: &'static str,
+    },
+    /// A drive is in fault (statusword bit 3) or sent an emergency.
+    #[error("table axis {axis} (node {node}) fault: statusword {statusword:#06x}, EMCY {emcy_code:?}; target {target_mm:?} mm, at {current_mm:?} mm; clear the cause, then fault-reset")]
+    DriveFault {
+        /// Axis letter.
+        axis: char,
+        /// Node id.
+        node: u8,
+        /// Statusword seen (0 if only an EMCY arrived).
+        statusword: u16,
+        /// EMCY error code, if one arrived.
+        emcy_code: Option<u16>,
+        /// Target of the move (mm), if moving.
+        target_mm: Option<f64>,
+        /// Last known position (mm).
+        current_mm: Option<f64>,
+    },
+    /// A drive reports a following error (statusword bit 13).
+    #[error("table axis {axis} (node {node}) following error: target {target_mm:.3} mm, at {current_mm:?} mm; reduce speed/acceleration or check the mechanics")]
+    FollowingError {
+        /// Axis letter.
+        axis: char,
+        /// Node id.
+        node: u8,
+        /// Target (mm).
+        target_mm: f64,
+        /// Last known position (mm).
+        current_mm: Option<f64>,
+    },
+    /// A drive's heartbeat stopped.
+    #[error("table axis {axis} (node {node}): no heartbeat for {silent_for:?} (limit {limit:?}); check the drive's power and the CAN bus")]
+    HeartbeatLost {
+        /// Axis letter.
+        axis: char,
+        /// Node id.
+        node: u8,
+        /// Time since the last heartbeat.
+        silent_for: Duration,
+        /// Supervision limit.
+        limit: Duration,
+    },
+    /// The panel reported no touch during an approach.
+    #[error("no touch while the table rose from z {z_from_mm:.3} to {z_to_mm:.3} mm (reached {reached_mm:?}); the pin missed the panel or the panel is disconnected")]
+    MissedTouch {
+        /// Approach start (mm).
+        z_from_mm: f64,
+        /// Approach end (mm).
+        z_to_mm: f64,
+        /// Where the table was when the wait ended.
+        reached_mm: Option<[f64; 3]>,
+    },
+    /// A safety wrapper refused a command before any byte was sent.
+    #[error("{device}: refused {what} = {value:.3} outside {min:.3}..{max:.3} ({why}); nothing was sent")]
+    Refused {
+        /// The device.
+        device: DeviceName,
+        /// Joint or axis.
+        what: String,
+        /// Requested value (deg or mm).
+        value: f64,
+        /// Smallest allowed.
+        min: f64,
+        /// Largest allowed.
+        max: f64,
+        /// Which rule.
+        why: &'static str,
+    },
+    /// The arm's own Cartesian pose (`WH`) disagrees with the nominal forward kinematics.
+    #[error("arm `WH` reports ({reported:?}) mm but the nominal kinematics give ({expected:?}) mm, {distance_mm:.2} mm apart (tolerance {tolerance_mm} mm); check the joint signs/offsets and the nest pose in the rig file")]
+    PoseMismatch {
+        /// Nominal position of the commanded joints (mm).
+        expected: [f64; 3],
+        /// The controller's report (mm).
+        reported: [f64; 3],
+        /// Distance (mm).
+        distance_mm: f64,
+        /// Tolerance (mm).
+        tolerance_mm: f64,
+    },
+    /// The device is not in a state that allows the call.
+    #[error("{device}: not ready: {detail}")]
+    NotReady {
+        /// The device.
+        device: DeviceName,
+        /// What is missing and what to do.
+        detail: String,
+    },
+    /// The device settings are unusable.
+    #[error("device settings: `devices.{key}`: {reason}")]
+    Config {
+        /// The key under `[devices]`.
+        key: String,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+impl DeviceError {
+    /// The coarse kind.
+    pub fn kind(&self) -> DeviceErrorKind {
+        match self {
+            DeviceError::Timeout { .. } => DeviceErrorKind::Timeout,
+            DeviceError::Transport { source, .. } => match source.kind() {
+                crate::transports::TransportErrorKind::Timeout => DeviceErrorKind::Timeout,
+                _ => DeviceErrorKind::Transport,
+            },
+            DeviceError::Protocol { .. } | DeviceError::SdoAbort { .. } => {
+                DeviceErrorKind::Protocol
+            }
+            DeviceError::ArmErrorMode { .. }
+            | DeviceError::DriveFault { .. }
+            | DeviceError::FollowingError { .. }
+            | DeviceError::HeartbeatLost { .. }
+            | DeviceError::PoseMismatch { .. } => DeviceErrorKind::DeviceFault,
+            DeviceError::Refused { .. } => DeviceErrorKind::Refused,
+            DeviceError::MissedTouch { .. } => DeviceErrorKind::Measurement,
+            DeviceError::ResetNotSafe { .. } | DeviceError::NotReady { .. } => {
+                DeviceErrorKind::NotReady
+            }
+            DeviceError::Config { .. } => DeviceErrorKind::Config,
+        }
+    }
+
+    /// True if repeating the operation may succeed without anyone intervening: timeouts,
+    /// garbled replies, retryable transport errors and a missed touch. Faults, refusals and
+    /// configuration errors need a decision first.
+    pub fn is_retryable(&self) -> bool {
+        match self {
+            DeviceError::Timeout { .. }
+            | DeviceError::Protocol { .. }
+            | DeviceError::MissedTouch { .. } => true,
+            DeviceError::Transport { source, .. } => source.is_retryable(),
+            _ => false,
+        }
+    }
+}
+
+/// The controller's Cartesian pose as `WH` reports it (mm, degrees).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArmPose {
+    /// Position (mm).
+    pub xyz_mm: [f64; 3],
+    /// Pitch (deg).
+    pub pitch_deg: f64,
+    /// Roll (deg).
+    pub roll_deg: f64,
+}
+
+/// The arm controller's error state (`ER`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ArmStatus {
+    /// No error.
+    Ok,
+    /// Error mode I: hardware; needs the operator.
+    HardwareError,
+    /// Error mode II: position out of range or command format; `RS` clears it.
+    PositionError,
+}
+
+/// A robot arm moved joint by joint.
+#[cfg_attr(any(test, feature = "mock"), mockall::automock)]
+pub trait Arm: Send {
+    /// Returns to the mechanical origin (nest) and starts tracking joints from the nest pose.
+    /// Returns the nest pose (rad).
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError>;
+    /// Sets the speed level 0..=9.
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError>;
+    /// Moves to absolute joint values `q` (rad) and waits until the motion is complete.
+    /// Returns the joint values actually commanded (after the controller's resolution).
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError>;
+    /// The joint values last commanded (rad); `None` before homing or after a hardware error.
+    fn commanded(&self) -> Option<Vec<f64>>;
+    /// Reads the controller's Cartesian pose.
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError>;
+    /// Reads the error state.
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError>;
+    /// Clears a position/format error; refuses a hardware error ([`DeviceError::ResetNotSafe`]).
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError>;
+}
+
+/// The x-y-z measurement table: the panel centre's position in the table frame (mm).
+#[cfg_attr(any(test, feature = "mock"), mockall::automock)]
+pub trait Table: Send {
+    /// Brings the drives up (NMT start, heartbeats, enable operation, profile position mode).
+    fn enable(&mut self, timeout: Duration) -> Result<(), DeviceError>;
+    /// Sets the profile velocity of every axis (mm/s).
+    fn set_speed(&mut self, mm_per_s: f64, timeout: Duration) -> Result<(), DeviceError>;
+    /// Starts a move to `target_mm` and returns once every drive has acknowledged it.
+    fn start_move(&mut self, target_mm: [f64; 3], timeout: Duration) -> Result<(), DeviceError>;
+    /// Waits until every axis has reached the target; returns the actual position.
+    fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
+    /// Reads the actual position (mm).
+    fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
+    /// Stops every axis where it is; returns the position.
+    fn halt(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
+    /// Clears drive faults (rising edge of controlword bit 7) and enables again.
+    fn fault_reset(&mut self, timeout: Duration) -> Result<(), DeviceError>;
+    /// Bus latency of a position read (from the rig file), for the approach-speed rule.
+    fn latency(&self) -> Duration;
+    /// Starts a new pass of ascending z (the safety wrapper forgets the previous z).
+    fn begin_pass(&mut self) {}
+}
+
+/// A touch as the panel reports it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Touch {
+    /// Raw counts (x, y).
+    pub counts: [u16; 2],
+    /// Offset from the panel centre along table +x (mm).
+    pub u_mm: f64,
+    /// Offset from the panel centre along table +y (mm).
+    pub v_mm: f64,
+}
+
+/// Counters of the panel's byte stream.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PanelStats {
+    /// Valid packets.
+    pub good: u64,
+    /// Packets dropped for a bad checksum.
+    pub bad_checksum: u64,
+    /// Packets dropped as out of range.
+    pub out_of_range: u64,
+    /// Bytes dropped while resynchronising.
+    pub discarded_bytes: u64,
+}
+
+/// The touch panel on the table's z arm.
+#[cfg_attr(any(test, feature = "mock"), mockall::automock)]
+pub trait Panel: Send {
+    /// Drops everything received so far.
+    fn clear(&mut self) -> Result<(), DeviceError>;
+    /// Waits for the first valid packet with the touch flag set.
+    fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError>;
+    /// Stream counters (bad packets are counted and dropped, never measured).
+    fn stats(&self) -> PanelStats;
+    /// The panel's reporting latency (from the rig file), for the approach-speed rule.
+    fn latency(&self) -> Duration;
+}
+
+impl<A: Arm + ?Sized> Arm for Box<A> {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        (**self).home(timeout)
+    }
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        (**self).set_speed(level, timeout)
+    }
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        (**self).move_to(q, timeout)
+    }
+    fn commanded(&self) -> Option<Vec<f64>> {
+        (**self).commanded()
+    }
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        (**self).where_pose(timeout)
+    }
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        (**self).status(timeout)
+    }
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        (**self).reset(timeout)
+    }
+}
+
+impl<T: Table + ?Sized> Table for Box<T> {
+    fn enable(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        (**self).enable(timeout)
+    }
+    fn set_speed(&mut self, mm_per_s: f64, timeout: Duration) -> Result<(), DeviceError> {
+        (**self).set_speed(mm_per_s, timeout)
+    }
+    fn start_move(&mut self, target_mm: [f64; 3], timeout: Duration) -> Result<(), DeviceError> {
+        (**self).start_move(target_mm, timeout)
+    }
+    fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        (**self).wait_reached(timeout)
+    }
+    fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        (**self).position(timeout)
+    }
+    fn halt(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        (**self).halt(timeout)
+    }
+    fn fault_reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        (**self).fault_reset(timeout)
+    }
+    fn latency(&self) -> Duration {
+        (**self).latency()
+    }
+    fn begin_pass(&mut self) {
+        (**self).begin_pass()
+    }
+}
+
+impl<P: Panel + ?Sized> Panel for Box<P> {
+    fn clear(&mut self) -> Result<(), DeviceError> {
+        (**self).clear()
+    }
+    fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
+        (**self).wait_touch(timeout)
+    }
+    fn stats(&self) -> PanelStats {
+        (**self).stats()
+    }
+    fn latency(&self) -> Duration {
+        (**self).latency()
+    }
+}

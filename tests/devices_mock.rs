@@ -1,0 +1,207 @@
+//! Device-using code against mockall mocks of the device traits (interaction: these calls, in
+//! this order), and the safety wrappers refusing before the wrapped device is called.
+
+use std::time::Duration;
+
+use mockall::predicate::eq;
+use mockall::Sequence;
+use rigcal::devices::contact::{approach_speed, measure_contact};
+use rigcal::devices::safety::{LimitedArm, LimitedTable};
+use rigcal::devices::{
+    Arm, DeviceError, DeviceErrorKind, DeviceName, MockArm, MockPanel, MockTable, Panel, Table,
+    Touch,
+};
+use rigcal::kinematics::{JointKind, JointSpec};
+
+fn touch() -> Touch {
+    Touch {
+        counts: [300, 100],
+        u_mm: 11.4,
+        v_mm: -8.6,
+    }
+}
+
+#[test]
+fn contact_clears_the_panel_starts_the_approach_and_reads_the_table_at_the_first_touch() {
+    let mut seq = Sequence::new();
+    let mut table = MockTable::new();
+    let mut panel = MockPanel::new();
+    panel
+        .expect_clear()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|| Ok(()));
+    table
+        .expect_set_speed()
+        .with(eq(0.4), mockall::predicate::always())
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_, _| Ok(()));
+    table
+        .expect_start_move()
+        .with(eq([100.0, 200.0, 51.0]), mockall::predicate::always())
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_, _| Ok(()));
+    panel
+        .expect_wait_touch()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_| Ok(touch()));
+    table
+        .expect_position()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_| Ok([100.0, 200.0, 50.2]));
+    table
+        .expect_halt()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_| Ok([100.0, 200.0, 50.2]));
+    let c = measure_contact(
+        &mut table,
+        &mut panel,
+        [100.0, 200.0],
+        49.0,
+        51.0,
+        0.4,
+        Duration::from_secs(6),
+    )
+    .unwrap();
+    assert_eq!(c.table_mm, [100.0, 200.0, 50.2]);
+    let p = c.point_table_mm();
+    assert!((p[0] - 111.4).abs() < 1e-12 && (p[1] - 191.4).abs() < 1e-12 && p[2] == 50.2);
+}
+
+#[test]
+fn no_touch_halts_the_table_and_reports_a_missed_touch() {
+    let mut table = MockTable::new();
+    let mut panel = MockPanel::new();
+    panel.expect_clear().returning(|| Ok(()));
+    table.expect_set_speed().returning(|_, _| Ok(()));
+    table.expect_start_move().returning(|_, _| Ok(()));
+    panel.expect_wait_touch().returning(|t| {
+        Err(DeviceError::Timeout {
+            device: DeviceName::Panel,
+            waiting_for: "a touch packet".into(),
+            waited: t,
+            target: "touch".into(),
+            current: String::new(),
+        })
+    });
+    table.expect_position().never();
+    table
+        .expect_halt()
+        .times(1)
+        .returning(|_| Ok([1.0, 2.0, 51.0]));
+    let e = measure_contact(
+        &mut table,
+        &mut panel,
+        [1.0, 2.0],
+        49.0,
+        51.0,
+        0.4,
+        Duration::from_secs(6),
+    )
+    .unwrap_err();
+    match e {
+        DeviceError::MissedTouch { reached_mm, .. } => {
+            assert_eq!(reached_mm, Some([1.0, 2.0, 51.0]))
+        }
+        other => panic!("{other}"),
+    }
+}
+
+#[test]
+fn the_approach_speed_rule_uses_both_latencies() {
+    let mut table = MockTable::new();
+    let mut panel = MockPanel::new();
+    table
+        .expect_latency()
+        .return_const(Duration::from_millis(2));
+    panel
+        .expect_latency()
+        .return_const(Duration::from_millis(10));
+    let v = approach_speed(panel.latency(), table.latency(), 0.005);
+    assert!(v * 0.012 <= 0.005 + 1e-15);
+}
+
+fn joints() -> Vec<JointSpec> {
+    (1..=5)
+        .map(|i| JointSpec {
+            name: format!("J{i}"),
+            kind: JointKind::Revolute,
+            min: (-90f64).to_radians(),
+            max: 90f64.to_radians(),
+        })
+        .collect()
+}
+
+#[test]
+fn the_arm_wrapper_refuses_a_move_outside_the_joint_limits_without_calling_the_arm() {
+    let mut inner = MockArm::new();
+    inner.expect_move_to().never();
+    let mut arm = LimitedArm::new(inner, joints());
+    let q = [0.0, 0.0, 100f64.to_radians(), 0.0, 0.0];
+    let e = arm.move_to(&q, Duration::from_secs(1)).unwrap_err();
+    assert_eq!(e.kind(), DeviceErrorKind::Refused);
+    assert!(
+        e.to_string().contains("joint J3") && e.to_string().contains("100.000"),
+        "{e}"
+    );
+    let e = arm
+        .move_to(&[f64::NAN, 0.0, 0.0, 0.0, 0.0], Duration::from_secs(1))
+        .unwrap_err();
+    assert_eq!(e.kind(), DeviceErrorKind::Refused);
+
+    let mut inner = MockArm::new();
+    inner
+        .expect_move_to()
+        .times(1)
+        .returning(|q, _| Ok(q.to_vec()));
+    let mut arm = LimitedArm::new(inner, joints());
+    arm.move_to(&[0.1, 0.2, 0.3, 0.0, 0.0], Duration::from_secs(1))
+        .unwrap();
+}
+
+#[test]
+fn the_table_wrapper_enforces_travel_and_ascending_z_within_a_pass() {
+    let mut inner = MockTable::new();
+    inner
+        .expect_start_move()
+        .with(eq([10.0, 10.0, 100.0]), mockall::predicate::always())
+        .times(1)
+        .returning(|_, _| Ok(()));
+    inner
+        .expect_start_move()
+        .with(eq([10.0, 10.0, 95.0]), mockall::predicate::always())
+        .times(1)
+        .returning(|_, _| Ok(()));
+    inner
+        .expect_start_move()
+        .with(eq([10.0, 10.0, 50.0]), mockall::predicate::always())
+        .times(1)
+        .returning(|_, _| Ok(()));
+    inner.expect_begin_pass().times(2).return_const(());
+    let mut t = LimitedTable::new(inner, [800.0, 560.0, 580.0], 10.0);
+    let s = Duration::from_secs(1);
+    assert_eq!(
+        t.start_move([-0.1, 10.0, 10.0], s).unwrap_err().kind(),
+        DeviceErrorKind::Refused
+    );
+    assert_eq!(
+        t.start_move([10.0, 560.5, 10.0], s).unwrap_err().kind(),
+        DeviceErrorKind::Refused
+    );
+    assert_eq!(
+        t.start_move([10.0, 10.0, 581.0], s).unwrap_err().kind(),
+        DeviceErrorKind::Refused
+    );
+    t.begin_pass();
+    t.start_move([10.0, 10.0, 100.0], s).unwrap();
+    t.start_move([10.0, 10.0, 95.0], s).unwrap(); // within the 10 mm retract allowance
+    let e = t.start_move([10.0, 10.0, 50.0], s).unwrap_err();
+    assert!(e.to_string().contains("ascend"), "{e}");
+    t.begin_pass();
+    t.start_move([10.0, 10.0, 50.0], s).unwrap();
+}
