@@ -89,5 +89,64 @@ fn compensation(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, identification, compensation);
+struct ScenarioMeasurer(rigcal::world::World, u64);
+
+impl rigcal::division::Measurer for ScenarioMeasurer {
+    fn measure(&mut self, q: &[f64]) -> Option<nalgebra::Vector3<f64>> {
+        self.1 += 1;
+        self.0.measure_at(q, self.1 as f64, self.1, 0).position
+    }
+}
+
+fn variable_model(c: &mut Criterion) {
+    use rigcal::division::{divide, DivisionOptions, Mode};
+    use rigcal::learners::{train, Learner, LearnerKind};
+    let scenario =
+        rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).expect("scenario");
+    let rig = scenario.rig.clone();
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let design = random_poses(rig.chain.joints(), rig.held(), 100, &mut rng);
+    let basis = analyse(&rig.chain, &design, &candidate_order(&rig)).basis;
+    let scale = rigcal::model::cep_scale(&rig, &basis);
+    let mut g = c.benchmark_group("variable model (paper-sim, joint space)");
+    g.sample_size(10);
+    let mut fcmac = None;
+    for accuracy in [0.1, 0.02] {
+        g.bench_function(
+            format!("divide + identify + train FCMAC, demanded {accuracy} mm"),
+            |b| {
+                b.iter(|| {
+                    let mut m = ScenarioMeasurer(scenario.world(), 0);
+                    let opts = DivisionOptions {
+                        accuracy_mm: accuracy,
+                        ..DivisionOptions::default()
+                    };
+                    let r = divide(&rig, &basis, Mode::Planning(&mut m), &opts, |_, _| {})
+                        .expect("divide");
+                    let init: Vec<f64> = basis
+                        .iter()
+                        .map(|&i| r.conventional.params.get(i))
+                        .collect();
+                    fcmac = train(LearnerKind::Fcmac, &r.tree, &init, &scale);
+                })
+            },
+        );
+    }
+    g.finish();
+    let Some(Learner::Fcmac(f)) = fcmac else {
+        return;
+    };
+    let points: Vec<[f64; 3]> = random_poses(rig.chain.joints(), rig.held(), 1000, &mut rng)
+        .iter()
+        .map(|q| [q[0], q[1], q[2]])
+        .collect();
+    let mut g = c.benchmark_group("FCMAC query");
+    g.throughput(Throughput::Elements(points.len() as u64));
+    g.bench_function("1000 points, 15 CEPs each", |b| {
+        b.iter(|| points.iter().map(|x| f.predict(x)[0]).sum::<f64>())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, identification, compensation, variable_model);
 criterion_main!(benches);

@@ -25,6 +25,7 @@ pub mod learners;
 pub mod model;
 pub mod protocols;
 pub mod recording;
+pub mod report;
 pub mod rig;
 pub mod transports;
 pub mod world;

@@ -122,6 +122,7 @@ pub struct FitSummary {
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
 #[serde(tag = "type", rename_all = "snake_case")]
 #[non_exhaustive]
+#[allow(clippy::large_enum_variant)] // one per model file; boxing would only add indirection
 pub enum ModelBody {
     /// Conventional calibration: one set of error parameters for the whole workspace.
     Constant {
@@ -183,6 +184,9 @@ pub struct ModelFile {
     /// The model.
     pub model: ModelBody,
 }
+
+/// An error model with its name (`conventional`, `regions`, `fcmac`, `cmac`).
+pub type NamedModel = (String, Box<dyn ErrorModel>);
 
 /// A model ready to use: its rig and its error parameters as a function of the pose.
 pub struct LoadedModel {
@@ -280,11 +284,7 @@ impl ModelFile {
 
     /// Every error model the file holds, the one compensation uses first: for a variable model
     /// the learner (if any), then the regions, then the conventional parameters.
-    pub fn error_models(
-        &self,
-        rig: &Rig,
-        path: &Path,
-    ) -> Result<Vec<(String, Box<dyn ErrorModel>)>, ModelError> {
+    pub fn error_models(&self, rig: &Rig, path: &Path) -> Result<Vec<NamedModel>, ModelError> {
         match &self.model {
             ModelBody::Constant { parameters, .. } => Ok(vec![(
                 "conventional".into(),
@@ -314,7 +314,7 @@ impl ModelFile {
                     })
                     .collect::<Result<Vec<_>, _>>()?;
                 let space = DivisionSpace::new(rig, tree.space).map_err(|e| bad(e.to_string()))?;
-                let mut out: Vec<(String, Box<dyn ErrorModel>)> = Vec::new();
+                let mut out: Vec<NamedModel> = Vec::new();
                 if let Some(l) = learner {
                     let name = match l {
                         Learner::Fcmac(_) => "fcmac",

@@ -7,7 +7,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rigcal::compensation::{compensate, CompensationOptions};
 use rigcal::division::{divide, DivisionOptions, Measurer, Mode, RegionModel};
-use rigcal::identification::{analyse, candidate_order, random_poses};
+use rigcal::identification::{analyse, candidate_order, random_poses, Observation};
 use rigcal::kinematics::{ErrorModel, ErrorParams, Robot};
 use rigcal::rig::Rig;
 use rigcal::world::paper_geometric_errors;
@@ -38,10 +38,10 @@ impl TrigArm {
     }
     fn truth(&self, q: &[f64]) -> Vector3<f64> {
         let mut qa = q.to_vec();
-        for i in 0..3 {
-            for j in 0..3 {
-                qa[i] += self.a[i][j] * q[j].cos() + self.b[i][j] * q[j].sin();
-            }
+        for (i, qi) in qa.iter_mut().take(3).enumerate() {
+            *qi += (0..3)
+                .map(|j| self.a[i][j] * q[j].cos() + self.b[i][j] * q[j].sin())
+                .sum::<f64>();
         }
         self.rig.chain.position(&qa, &self.geometric)
     }
@@ -107,7 +107,6 @@ fn division_beats_conventional_calibration_on_position_dependent_errors() {
         max_regions: 40,
         ..DivisionOptions::default()
     };
-    let t0 = std::time::Instant::now();
     let report = divide(
         &rig,
         &ident.basis,
@@ -116,22 +115,13 @@ fn division_beats_conventional_calibration_on_position_dependent_errors() {
         |_, _| {},
     )
     .unwrap();
-    eprintln!(
-        "division took {:?}, {} measurements",
-        t0.elapsed(),
-        arm.count
-    );
     let leaves = report.tree.leaf_count();
-    for l in report.tree.root.leaves() {
-        eprintln!(
-            "{} n={} κ={:.0} test={:?} note={:?}",
-            l.id,
-            l.measurements,
-            l.kappa,
-            l.test.map(|t| t.max_mm),
-            l.note
-        );
-    }
+    assert!(leaves > 1 && leaves <= 40);
+    assert!(
+        report.observations.len() >= 20 * leaves / 2,
+        "{} measurements",
+        report.observations.len()
+    );
     let model = RegionModel::new(
         report.tree.clone(),
         report.space.clone(),
@@ -141,11 +131,61 @@ fn division_beats_conventional_calibration_on_position_dependent_errors() {
     let conv = path_errors(&arm, &report.conventional.params);
     let var = path_errors(&arm, &model);
     let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
-    eprintln!(
-        "regions {leaves}, conventional max {:.4}, variable max {:.4}",
-        max(&conv),
-        max(&var)
+    assert!(
+        max(&var) < 0.6 * max(&conv),
+        "variable {:.4} vs conventional {:.4}",
+        max(&var),
+        max(&conv)
     );
-    assert!(leaves > 1);
-    assert!(max(&var) < max(&conv));
+}
+
+#[test]
+fn offline_division_works_from_a_recording_without_regions() {
+    let rig = Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
+    let design = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        100,
+        &mut ChaCha8Rng::seed_from_u64(1),
+    );
+    let ident = analyse(&rig.chain, &design, &candidate_order(&rig));
+    let geo = paper_geometric_errors(&rig.chain, &ident, 5);
+    let mut arm = TrigArm::new(rig.clone(), geo, 0.02, 3);
+    let poses = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        1500,
+        &mut ChaCha8Rng::seed_from_u64(2),
+    );
+    let obs: Vec<Observation> = poses
+        .iter()
+        .map(|q| Observation {
+            q: q.clone(),
+            p: arm.measure(q).unwrap(),
+        })
+        .collect();
+    let opts = DivisionOptions {
+        max_regions: 30,
+        accuracy_mm: 0.05,
+        ..DivisionOptions::default()
+    };
+    let report = divide(&rig, &ident.basis, Mode::Offline(&obs), &opts, |_, _| {}).unwrap();
+    assert!(report.tree.leaf_count() > 1);
+    assert_eq!(report.test_measurements, 0);
+    assert_eq!(report.observations.len(), 1500);
+    let model = RegionModel::new(
+        report.tree.clone(),
+        report.space.clone(),
+        ident.basis.clone(),
+        rig.chain.layout().len(),
+    );
+    let max = |v: &[f64]| v.iter().copied().fold(0.0, f64::max);
+    let conv = path_errors(&arm, &report.conventional.params);
+    let var = path_errors(&arm, &model);
+    assert!(
+        max(&var) < max(&conv),
+        "variable {:.4} vs conventional {:.4}",
+        max(&var),
+        max(&conv)
+    );
 }

@@ -48,6 +48,11 @@ pub struct Args {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Treat the region containing this point of the division space (q1,q2,q3 in degrees, or
+    /// R mm,azimuth deg,elevation deg) as unmeasurable: its CEPs are dropped after the division
+    /// and the learner must generalise there (seed 000 Fig. 8).
+    #[arg(long, allow_hyphen_values = true, value_name = "A,B,C")]
+    pub unmeasurable_at: Option<String>,
     /// Where to write the model (JSON).
     #[arg(long)]
     pub out: PathBuf,
@@ -125,10 +130,15 @@ pub(crate) fn calibrate(
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let t0 = std::time::Instant::now();
-    let report = divide(rig, &ident.basis, mode, &opts, |n, _| {
+    let mut report = divide(rig, &ident.basis, mode, &opts, |n, _| {
         bar.set_position(n as u64)
     })?;
     bar.finish_and_clear();
+    if let Some(p) = &a.unmeasurable_at {
+        let x = unmeasurable_point(a.division, p)?;
+        let id = crate::division::forget_region(&mut report.tree, &x);
+        println!("region {id} (containing {p}) treated as unmeasurable: its CEPs are dropped");
+    }
     let t_div = t0.elapsed();
     let t1 = std::time::Instant::now();
     let scale = cep_scale(rig, &ident.basis);
@@ -137,7 +147,7 @@ pub(crate) fn calibrate(
         .iter()
         .map(|&i| report.conventional.params.get(i))
         .collect();
-    let learner = learners::train(a.learner, &report.tree, &init, &scale, a.seed);
+    let learner = learners::train(a.learner, &report.tree, &init, &scale);
     let t_learn = t1.elapsed();
     print_summary(
         &report,
@@ -279,5 +289,24 @@ fn planning_world(
         seq: 0,
         t_s: 0.0,
         step_s: sc.measurement.seconds_per_point,
+    })
+}
+
+/// A division-space point from file units (deg for angles, mm for R).
+fn unmeasurable_point(space: Space, text: &str) -> Result<[f64; 3]> {
+    let p: Vec<f64> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| {
+            anyhow::anyhow!("--unmeasurable-at `{text}`: give three numbers separated by commas")
+        })?;
+    anyhow::ensure!(
+        p.len() == 3,
+        "--unmeasurable-at `{text}`: give three numbers separated by commas"
+    );
+    Ok(match space {
+        Space::Joint => [p[0].to_radians(), p[1].to_radians(), p[2].to_radians()],
+        Space::Cartesian => [p[0], p[1].to_radians(), p[2].to_radians()],
     })
 }

@@ -3,6 +3,7 @@
 mod calibrate;
 mod compensate;
 mod demo;
+mod evaluate;
 mod identify;
 mod observability;
 mod register;
@@ -42,6 +43,8 @@ enum Command {
     /// The variable D-H parameter model: recursive workspace division, CEPs per region and an
     /// FCMAC (or CMAC) that generalises them.
     Calibrate(calibrate::Args),
+    /// Position error along paths of a simulated arm with each model, CEP traces and plots.
+    Evaluate(evaluate::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
     Simulate(simulate::Args),
     /// Serve one device's emulator on a pseudo-terminal (prints the port path).
@@ -59,6 +62,7 @@ pub fn main() -> ExitCode {
         Command::Register(a) => register::run(a),
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Evaluate(a) => evaluate::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
     };

@@ -105,6 +105,23 @@ impl RegionTree {
     }
 }
 
+/// Drops the CEPs of the leaf containing `x`, as if it could not be measured; compensation then
+/// falls back to the nearest ancestor's CEPs and a learner must generalise. Returns the leaf's id.
+pub fn forget_region(tree: &mut RegionTree, x: &[f64; 3]) -> String {
+    let full = tree.full;
+    let mut node = &mut tree.root;
+    while let Some(k) = node
+        .children
+        .iter()
+        .position(|c| c.bounds.contains(x, &full))
+    {
+        node = &mut node.children[k];
+    }
+    node.cep = None;
+    node.note = Some("unmeasurable".into());
+    node.id.clone()
+}
+
 /// A region tree as an error model: the CEPs of the region a pose falls in.
 pub struct RegionModel {
     tree: RegionTree,

@@ -33,7 +33,7 @@ impl CmacConfig {
             layers: 3,
             beta: 0.5,
             tolerance: 1e-3,
-            max_epochs: 300,
+            max_epochs: 150,
         }
     }
 }

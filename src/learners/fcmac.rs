@@ -49,7 +49,7 @@ impl FcmacConfig {
             sigma_fraction: 0.5,
             beta: 0.5,
             tolerance: 1e-3,
-            max_epochs: 300,
+            max_epochs: 150,
             hash_size: None,
         }
     }

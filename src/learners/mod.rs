@@ -11,9 +11,8 @@ mod fcmac;
 pub use cmac::{Cmac, CmacConfig};
 pub use fcmac::{Fcmac, FcmacConfig};
 
-use crate::division::{Bounds, DivisionSpace, RegionTree};
+use crate::division::{DivisionSpace, RegionTree};
 use crate::kinematics::{ErrorModel, ErrorParams};
-use rand::{Rng, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 /// A training pattern: an input point and the outputs wanted there.
@@ -58,35 +57,30 @@ impl Learner {
     }
 }
 
-/// Training patterns from a region tree: `per_region` points spread over each leaf that has
-/// CEPs (its centre and random points), each asking for the leaf's CEPs in file units.
-pub fn patterns_from_tree(
-    tree: &RegionTree,
-    scale: &[f64],
-    per_region: usize,
-    seed: u64,
-) -> Vec<Pattern> {
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+/// Training patterns from a region tree: a lattice of `grid[d]` points per input dimension over
+/// the whole workspace, each asking for the CEPs (scaled to file units) of the leaf it falls in;
+/// points in a leaf without CEPs (an unmeasurable region) are left out, so the learner must
+/// generalise there. A lattice at half the sensor spacing reaches every association cell.
+pub fn patterns_from_tree(tree: &RegionTree, scale: &[f64], grid: [usize; 3]) -> Vec<Pattern> {
     let mut out = Vec::new();
-    for leaf in tree.root.leaves() {
-        let Some(cep) = &leaf.cep else { continue };
-        let y: Vec<f64> = cep.iter().zip(scale).map(|(v, s)| v * s).collect();
-        out.push(Pattern {
-            x: leaf.bounds.centre(),
-            y: y.clone(),
-        });
-        for _ in 1..per_region.max(1) {
-            out.push(Pattern {
-                x: random_in(&leaf.bounds, &mut rng),
-                y: y.clone(),
-            });
+    let f = tree.full;
+    let at =
+        |d: usize, k: usize| f.lo[d] + (f.hi[d] - f.lo[d]) * k as f64 / (grid[d].max(2) - 1) as f64;
+    for i in 0..grid[0] {
+        for j in 0..grid[1] {
+            for k in 0..grid[2] {
+                let x = [at(0, i), at(1, j), at(2, k)];
+                let Some(cep) = &tree.root.leaf_at(&x, &f).cep else {
+                    continue;
+                };
+                out.push(Pattern {
+                    x,
+                    y: cep.iter().zip(scale).map(|(v, s)| v * s).collect(),
+                });
+            }
         }
     }
     out
-}
-
-fn random_in<R: Rng + ?Sized>(b: &Bounds, rng: &mut R) -> [f64; 3] {
-    std::array::from_fn(|k| rng.gen_range(b.lo[k]..=b.hi[k]))
 }
 
 /// A learner as an error model: CEPs at the division-space coordinates of a pose.
@@ -147,21 +141,11 @@ pub enum LearnerKind {
     Fcmac,
 }
 
-/// Patterns drawn per region when training a learner.
-pub const PATTERNS_PER_REGION: usize = 9;
-
 /// Trains a learner of `kind` on the leaves of `tree`; weights start at `init` (conventional
 /// CEPs, internal units); `scale` converts CEPs to output units. The input with 17 sensors is the
 /// first joint's coordinate (q1 in joint space, azimuth in Cartesian space, which equals q1).
-pub fn train(
-    kind: LearnerKind,
-    tree: &RegionTree,
-    init: &[f64],
-    scale: &[f64],
-    seed: u64,
-) -> Option<Learner> {
+pub fn train(kind: LearnerKind, tree: &RegionTree, init: &[f64], scale: &[f64]) -> Option<Learner> {
     let init_scaled: Vec<f64> = init.iter().zip(scale).map(|(v, s)| v * s).collect();
-    let patterns = patterns_from_tree(tree, scale, PATTERNS_PER_REGION, seed);
     let widest = match tree.space {
         crate::division::Space::Joint => 0,
         crate::division::Space::Cartesian => 1,
@@ -169,16 +153,16 @@ pub fn train(
     match kind {
         LearnerKind::None => None,
         LearnerKind::Fcmac => {
-            let mut f = Fcmac::new(FcmacConfig::paper(widest), tree.full, &init_scaled);
+            let config = FcmacConfig::paper(widest);
+            let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n - 1));
+            let mut f = Fcmac::new(config, tree.full, &init_scaled);
             f.train(&patterns);
             Some(Learner::Fcmac(f))
         }
         LearnerKind::Cmac => {
-            let mut c = Cmac::new(
-                CmacConfig::matching(FcmacConfig::paper(widest).cells),
-                tree.full,
-                &init_scaled,
-            );
+            let config = CmacConfig::matching(FcmacConfig::paper(widest).cells);
+            let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n + 1));
+            let mut c = Cmac::new(config, tree.full, &init_scaled);
             c.train(&patterns);
             Some(Learner::Cmac(c))
         }

@@ -1,0 +1,334 @@
+//! Evaluation along paths and plots a person can look at (SVG).
+//!
+//! A path is a list of nominal joint solutions; its targets are their nominal positions. For each
+//! error model the arm is commanded with compensation and the position error is |truth(command) −
+//! target| (mm), the truth coming from a simulated world. CEP traces and the largest jump of each
+//! CEP between consecutive path points measure smoothness.
+
+use crate::compensation::{compensate_from, CompensationOptions};
+use crate::identification::ResidualStats;
+use crate::kinematics::{
+    solve_position_ik, ErrorModel, ErrorParams, IkOptions, Robot, Spherical, SphericalFrame,
+};
+use crate::rig::Rig;
+use nalgebra::Vector3;
+use plotters::prelude::*;
+use std::path::Path;
+
+/// A path: nominal joint solutions, one per point.
+#[derive(Debug, Clone)]
+pub struct PathSpec {
+    /// Title for reports.
+    pub name: String,
+    /// Nominal joint values per point (rad, mm).
+    pub points: Vec<Vec<f64>>,
+}
+
+/// Why a path could not be made.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PathError {
+    /// A point of the path has no nominal joint solution.
+    #[error("path point {index} has no joint solution: {source}")]
+    Unreachable {
+        /// Point index.
+        index: usize,
+        /// The inverse-kinematics error.
+        source: crate::kinematics::IkError,
+    },
+    /// Writing a plot failed.
+    #[error("cannot write plot {path}: {reason}")]
+    Plot {
+        /// The file.
+        path: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+/// A straight line in joint space between two sets of the moving joints' values (deg or mm),
+/// held joints at their calibration values.
+pub fn joint_path(rig: &Rig, name: &str, a: &[f64], b: &[f64], n: usize) -> PathSpec {
+    let moving = rig.moving_joints();
+    let joints = rig.chain.joints();
+    let points = (0..n)
+        .map(|k| {
+            let t = k as f64 / (n.max(2) - 1) as f64;
+            let mut q: Vec<f64> = rig.held().iter().map(|h| h.unwrap_or(0.0)).collect();
+            for (m, &j) in moving.iter().enumerate().take(a.len().min(b.len())) {
+                q[j] = joints[j].kind.from_file_units(a[m] + t * (b[m] - a[m]));
+            }
+            q
+        })
+        .collect();
+    PathSpec {
+        name: name.into(),
+        points,
+    }
+}
+
+/// A straight line in spherical coordinates (R mm, azimuth deg, elevation deg).
+pub fn spherical_path(
+    rig: &Rig,
+    name: &str,
+    a: [f64; 3],
+    b: [f64; 3],
+    n: usize,
+) -> Result<PathSpec, PathError> {
+    let sf = SphericalFrame::of(&rig.chain);
+    let e = ErrorParams::zeros(rig.chain.layout());
+    let mut points = Vec::with_capacity(n);
+    let mut seed: Option<Vec<f64>> = None;
+    for k in 0..n {
+        let t = k as f64 / (n.max(2) - 1) as f64;
+        let s = Spherical {
+            r: a[0] + t * (b[0] - a[0]),
+            azimuth: (a[1] + t * (b[1] - a[1])).to_radians(),
+            elevation: (a[2] + t * (b[2] - a[2])).to_radians(),
+        };
+        let p = sf.to_world(&s);
+        let q = solve_position_ik(
+            &rig.chain,
+            &e,
+            &p,
+            rig.held(),
+            seed.as_deref(),
+            &IkOptions::default(),
+        )
+        .map_err(|source| PathError::Unreachable { index: k, source })?;
+        seed = Some(q.clone());
+        points.push(q);
+    }
+    Ok(PathSpec {
+        name: name.into(),
+        points,
+    })
+}
+
+/// One model's performance along a path.
+#[derive(Debug, Clone)]
+pub struct PathResult {
+    /// Model name (`uncalibrated`, `conventional`, `regions`, `fcmac`, …).
+    pub model: String,
+    /// Position error per point (mm); NaN where compensation failed.
+    pub errors: Vec<f64>,
+    /// Traced CEPs per point (file units), in the order of the requested names.
+    pub traces: Vec<Vec<f64>>,
+    /// Points where compensation failed.
+    pub failures: usize,
+}
+
+impl PathResult {
+    /// Statistics of the errors where compensation succeeded.
+    pub fn stats(&self) -> ResidualStats {
+        let v: Vec<Vector3<f64>> = self
+            .errors
+            .iter()
+            .filter(|e| e.is_finite())
+            .map(|&e| Vector3::new(e, 0.0, 0.0))
+            .collect();
+        ResidualStats::of(&v)
+    }
+
+    /// Largest jump of each traced CEP between consecutive points (file units).
+    pub fn largest_jumps(&self) -> Vec<f64> {
+        self.traces
+            .iter()
+            .map(|t| {
+                t.windows(2)
+                    .map(|w| (w[1] - w[0]).abs())
+                    .fold(0.0, f64::max)
+            })
+            .collect()
+    }
+}
+
+/// Evaluates models along a path against `truth` (the simulated arm's true position for a
+/// command). `trace` names CEPs to trace (`theta1`, `d1`, …).
+pub fn evaluate_path(
+    rig: &Rig,
+    path: &PathSpec,
+    models: &[(String, &dyn ErrorModel)],
+    truth: &dyn Fn(&[f64]) -> Vector3<f64>,
+    trace: &[&str],
+) -> Vec<PathResult> {
+    let layout = rig.chain.layout();
+    let nominal = ErrorParams::zeros(layout);
+    let idx: Vec<Option<usize>> = trace
+        .iter()
+        .map(|n| layout.find(n).and_then(|id| layout.index_of(id)))
+        .collect();
+    let targets: Vec<Vector3<f64>> = path
+        .points
+        .iter()
+        .map(|q| rig.chain.position(q, &nominal))
+        .collect();
+    let mut out = vec![PathResult {
+        model: "uncalibrated".into(),
+        errors: path
+            .points
+            .iter()
+            .zip(&targets)
+            .map(|(q, t)| (truth(q) - t).norm())
+            .collect(),
+        traces: Vec::new(),
+        failures: 0,
+    }];
+    let opts = CompensationOptions::default();
+    for (name, model) in models {
+        let mut r = PathResult {
+            model: name.clone(),
+            errors: Vec::with_capacity(path.points.len()),
+            traces: vec![Vec::with_capacity(path.points.len()); trace.len()],
+            failures: 0,
+        };
+        for (q, t) in path.points.iter().zip(&targets) {
+            let e = model.params_at(q);
+            for (k, i) in idx.iter().enumerate() {
+                let v = i
+                    .map(|i| layout.ids()[i].kind.to_file_units(e.get(i)))
+                    .unwrap_or(f64::NAN);
+                r.traces[k].push(v);
+            }
+            match compensate_from(&rig.chain, *model, t, rig.held(), q.clone(), &opts) {
+                Ok(c) => r.errors.push((truth(&c.command) - t).norm()),
+                Err(_) => {
+                    r.failures += 1;
+                    r.errors.push(f64::NAN);
+                }
+            }
+        }
+        out.push(r);
+    }
+    out
+}
+
+const COLOURS: [RGBColor; 6] = [
+    RGBColor(120, 120, 120),
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(255, 127, 14),
+];
+
+fn plot_err(path: &Path, e: impl std::fmt::Display) -> PathError {
+    PathError::Plot {
+        path: path.display().to_string(),
+        reason: e.to_string(),
+    }
+}
+
+/// Plots the position error along the path for every model (SVG).
+pub fn plot_errors(file: &Path, title: &str, results: &[PathResult]) -> Result<(), PathError> {
+    let root = SVGBackend::new(file, (900, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_err(file, e))?;
+    let n = results.first().map_or(1, |r| r.errors.len()).max(2);
+    let ymax = results
+        .iter()
+        .flat_map(|r| r.errors.iter())
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, |a, &b| a.max(b))
+        * 1.1
+        + 1e-6;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0f64..(n - 1) as f64, 0f64..ymax)
+        .map_err(|e| plot_err(file, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("point on the path")
+        .y_desc("position error (mm)")
+        .draw()
+        .map_err(|e| plot_err(file, e))?;
+    for (k, r) in results.iter().enumerate() {
+        let c = COLOURS[k % COLOURS.len()];
+        chart
+            .draw_series(LineSeries::new(
+                r.errors
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, v)| v.is_finite())
+                    .map(|(i, &v)| (i as f64, v)),
+                c.stroke_width(2),
+            ))
+            .map_err(|e| plot_err(file, e))?
+            .label(r.model.clone())
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| plot_err(file, e))?;
+    root.present().map_err(|e| plot_err(file, e))
+}
+
+/// Plots traced CEPs along the path, one panel per CEP (SVG).
+pub fn plot_traces(
+    file: &Path,
+    title: &str,
+    names: &[&str],
+    units: &[&str],
+    results: &[PathResult],
+) -> Result<(), PathError> {
+    let root =
+        SVGBackend::new(file, (900, 220 * names.len().max(1) as u32 + 40)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_err(file, e))?;
+    let root = root
+        .titled(title, ("sans-serif", 20))
+        .map_err(|e| plot_err(file, e))?;
+    let panels = root.split_evenly((names.len().max(1), 1));
+    for (k, panel) in panels.iter().enumerate() {
+        let series: Vec<&PathResult> = results.iter().filter(|r| r.traces.len() > k).collect();
+        let vals: Vec<f64> = series
+            .iter()
+            .flat_map(|r| r.traces[k].iter().copied())
+            .filter(|v| v.is_finite())
+            .collect();
+        if vals.is_empty() {
+            continue;
+        }
+        let lo = vals.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let pad = ((hi - lo) * 0.1).max(1e-4);
+        let n = series[0].traces[k].len().max(2);
+        let mut chart = ChartBuilder::on(panel)
+            .margin(8)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0f64..(n - 1) as f64, (lo - pad)..(hi + pad))
+            .map_err(|e| plot_err(file, e))?;
+        chart
+            .configure_mesh()
+            .y_desc(format!("Δ{} ({})", names[k], units.get(k).unwrap_or(&"")))
+            .draw()
+            .map_err(|e| plot_err(file, e))?;
+        for (s, r) in series.iter().enumerate() {
+            let c = COLOURS[(s + 1) % COLOURS.len()];
+            chart
+                .draw_series(LineSeries::new(
+                    r.traces[k].iter().enumerate().map(|(i, &v)| (i as f64, v)),
+                    c.stroke_width(2),
+                ))
+                .map_err(|e| plot_err(file, e))?
+                .label(r.model.clone())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                });
+        }
+        if k == 0 {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| plot_err(file, e))?;
+        }
+    }
+    root.present().map_err(|e| plot_err(file, e))
+}
