@@ -196,3 +196,69 @@ fn sim_device_serves_the_arm_on_a_pseudo_terminal() {
     let _ = child.wait();
     result.unwrap();
 }
+
+#[test]
+fn import_converts_units_keeps_columns_and_names_bad_cells() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("tracker.csv");
+    std::fs::write(&csv, "time,a1,a2,a3,a4,a5,mx,my,mz,operator\n0.5,0.1,0.2,-0.3,0,0,0.1,0.725,0.4,ann\n1.0,0.2,0.3,-0.4,0,0,0.11,0.7,0.41,bob\n").unwrap();
+    let out = dir.path().join("rec");
+    let args = [
+        "import",
+        s(&csv),
+        "--rig",
+        "rigs/rv-m2-ideal.toml",
+        "--joints",
+        "a1,a2,a3,a4,a5",
+        "--point",
+        "mx,my,mz",
+        "--time",
+        "time",
+        "--out",
+        s(&out),
+    ];
+    let (ok, _, err) = rigcal(&args);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(out.join("measurements.csv")).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].ends_with(",status,operator"), "{}", lines[0]);
+    assert!(lines[1].starts_with("1,0.500,5.729578,11.459156,-17.188734,0.000000,0.000000,100.00000,725.00000,400.00000,"), "{}", lines[1]);
+    assert!(lines[1].ends_with(",ok,ann"), "{}", lines[1]);
+
+    std::fs::write(
+        &csv,
+        "time,a1,a2,a3,a4,a5,mx,my,mz\n0.5,0.1,0.2,-0.3,0,0,0.1,oops,0.4\n",
+    )
+    .unwrap();
+    let (ok, _, err) = rigcal(&args);
+    assert!(!ok);
+    assert!(
+        err.contains("line 2, column 8 (`my`): `oops` is not a number"),
+        "{err}"
+    );
+    std::fs::write(
+        &csv,
+        "time,a1,a2,a3,a4,a5,mx,my,mz\n0.5,3.0,0.2,-0.3,0,0,0.1,0.7,0.4\n",
+    )
+    .unwrap();
+    let (ok, _, err) = rigcal(&args);
+    assert!(!ok);
+    assert!(
+        err.contains("line 2, column 2 (`a1`)") && err.contains("outside joint J1's limits"),
+        "{err}"
+    );
+    let (ok, _, err) = rigcal(&[
+        "import",
+        s(&csv),
+        "--rig",
+        "rigs/rv-m2-ideal.toml",
+        "--joints",
+        "a1,a2,a3,a4,b5",
+        "--point",
+        "mx,my,mz",
+        "--out",
+        s(&out),
+    ]);
+    assert!(!ok);
+    assert!(err.contains("no column `b5`"), "{err}");
+}

@@ -2,7 +2,7 @@
 
 use crate::identification::registration::kabsch;
 use crate::identification::{analyse, candidate_order, fit, FitOptions, FitResult};
-use crate::kinematics::{ErrorParams, Robot, SerialChain};
+use crate::kinematics::{ErrorParams, JointKind, ParamKind, Robot, SerialChain, TransformId};
 use crate::model::{ModelFile, Provenance};
 use crate::recording::Recording;
 use crate::rig::{FrameMode, Rig};
@@ -21,12 +21,31 @@ pub struct Args {
     /// Where to write the model (JSON).
     #[arg(long)]
     out: PathBuf,
+    /// What to fit: `frames` (the free measurement frame and marker only), `offsets` (plus the
+    /// joint offsets that stay identifiable after them), `full` (every identifiable parameter).
+    #[arg(long, value_enum, default_value_t = Level::Full)]
+    level: Level,
+    /// Held-out recordings (another day's session, say): RMS and max position error of the
+    /// fitted model on each.
+    #[arg(long, num_args = 1..)]
+    heldout: Vec<PathBuf>,
+}
+
+/// How much of the model to fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Level {
+    /// Measurement frame and marker only.
+    Frames,
+    /// Frames plus joint offsets.
+    Offsets,
+    /// Every identifiable parameter.
+    Full,
 }
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
     let rec = Recording::read(&a.recording, rig.chain.joints())?;
-    let (chain, result) = identify(&rig, &rec)?;
+    let (chain, result) = identify_at(&rig, &rec, a.level)?;
     println!(
         "recording {}: {} rows, {} measurements used",
         a.recording.display(),
@@ -35,6 +54,32 @@ pub fn run(a: Args) -> Result<()> {
     );
     print!("{}", super::parameter_table(chain.layout(), &result, None));
     print_fit_summary(&result);
+    for dir in &a.heldout {
+        let held = Recording::read(dir, rig.chain.joints())?;
+        let obs = super::observations(&held);
+        if obs.is_empty() {
+            bail!("held-out recording {}: no measured rows", dir.display());
+        }
+        let before = crate::identification::ResidualStats::of(&crate::identification::errors(
+            &chain,
+            &obs,
+            &ErrorParams::zeros(chain.layout()),
+        ));
+        let after = crate::identification::ResidualStats::of(&crate::identification::errors(
+            &chain,
+            &obs,
+            &result.params,
+        ));
+        println!(
+            "held-out {} ({} points): nominal RMS {:.4} mm, max {:.4} mm → fitted RMS {:.4} mm, max {:.4} mm",
+            dir.display(),
+            obs.len(),
+            before.rms_mm,
+            before.max_mm,
+            after.rms_mm,
+            after.max_mm
+        );
+    }
     let file = ModelFile::constant(
         &rig,
         &result,
@@ -73,6 +118,17 @@ pub(crate) fn print_fit_summary(r: &FitResult) {
 /// Identifies the parameters a recording can separate. With a free measurement frame the
 /// chain's nominal frame starts at the closed-form registration of the nominal arm.
 pub(crate) fn identify(rig: &Rig, rec: &Recording) -> Result<(SerialChain, FitResult)> {
+    identify_at(rig, rec, Level::Full)
+}
+
+/// Identifies at a level. With a free measurement frame the fit starts from the closed-form
+/// registration of the nominal arm, and the frame parameters are returned as absolute values
+/// (the rig's nominal frame is the identity), so the model file stands alone.
+pub(crate) fn identify_at(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+) -> Result<(SerialChain, FitResult)> {
     let obs = super::observations(rec);
     if obs.is_empty() {
         bail!("the recording has no measured rows (status ok with x_mm, y_mm, z_mm)");
@@ -87,13 +143,60 @@ pub(crate) fn identify(rig: &Rig, rec: &Recording) -> Result<(SerialChain, FitRe
         rig.chain.clone()
     };
     let poses: Vec<Vec<f64>> = obs.iter().map(|o| o.q.clone()).collect();
-    let ident = analyse(&chain, &poses, &candidate_order(rig));
-    let result = fit(&chain, &obs, &nominal, &ident.basis, &FitOptions::default())
+    let layout = chain.layout();
+    let candidates: Vec<usize> = candidate_order(rig)
+        .into_iter()
+        .filter(|&i| {
+            let id = layout.ids()[i];
+            match (level, id.transform) {
+                (_, TransformId::Frame | TransformId::Marker) | (Level::Full, _) => true,
+                (Level::Offsets, TransformId::Link(j)) => {
+                    let kind = rig.chain.joints()[j - 1].kind;
+                    (kind == JointKind::Revolute && id.kind == ParamKind::Theta)
+                        || (kind == JointKind::Prismatic && id.kind == ParamKind::D)
+                }
+                _ => false,
+            }
+        })
+        .collect();
+    if candidates.is_empty() {
+        bail!("nothing to fit at level {level:?}: the rig's measurement frame and marker are fixed (set them free in [calibration] or use --level full)");
+    }
+    let ident = analyse(&chain, &poses, &candidates);
+    let mut result = fit(&chain, &obs, &nominal, &ident.basis, &FitOptions::default())
         .context("identification failed")?;
+    if rig.calibration.measurement_frame == FrameMode::Free {
+        absolute_frame(&chain, &mut result);
+        return Ok((rig.chain.clone(), result));
+    }
     Ok((chain, result))
 }
 
 /// Reads a recording for a rig, with the path in the error.
 pub(crate) fn read_recording(rig: &Rig, path: &Path) -> Result<Recording> {
     Ok(Recording::read(path, rig.chain.joints())?)
+}
+
+/// Rewrites the fitted frame parameters of a chain whose nominal frame was a start value as
+/// absolute values for the identity nominal frame: F = Trans(x, y, z) · Rz(rz) · Ry(ry) · Rx(rx).
+fn absolute_frame(started: &SerialChain, result: &mut FitResult) {
+    let f = started.frame_pose(&result.params);
+    let (roll, pitch, yaw) = f.rotation.euler_angles();
+    let t = f.translation.vector;
+    let layout = started.layout();
+    for (i, id) in layout.ids().iter().enumerate() {
+        if id.transform != TransformId::Frame {
+            continue;
+        }
+        let v = match id.kind {
+            ParamKind::X => t.x,
+            ParamKind::Y => t.y,
+            ParamKind::Z => t.z,
+            ParamKind::Rx => roll,
+            ParamKind::Ry => pitch,
+            ParamKind::Rz => yaw,
+            _ => continue,
+        };
+        result.params.set(i, v);
+    }
 }

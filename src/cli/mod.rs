@@ -5,6 +5,7 @@ mod compensate;
 mod demo;
 mod evaluate;
 mod identify;
+mod import;
 mod observability;
 mod register;
 mod sim_device;
@@ -36,6 +37,8 @@ enum Command {
     Observability(observability::Args),
     /// Identify the kinematic error parameters from a recording (conventional calibration).
     Identify(identify::Args),
+    /// Turn a tracker or motion-capture CSV into a recording (mm, degrees, the rig's joint order).
+    Import(import::Args),
     /// Fit the rigid transform between the instrument's frame and the world.
     Register(register::Args),
     /// Joint commands that bring the calibrated arm to target positions.
@@ -60,6 +63,7 @@ pub fn main() -> ExitCode {
         Command::Observability(a) => observability::run(a),
         Command::Identify(a) => identify::run(a),
         Command::Register(a) => register::run(a),
+        Command::Import(a) => import::run(a),
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Evaluate(a) => evaluate::run(a),
