@@ -8,6 +8,7 @@ mod identify;
 mod import;
 mod observability;
 mod register;
+mod rig_cmd;
 mod sim_device;
 mod simulate;
 
@@ -37,6 +38,8 @@ enum Command {
     Observability(observability::Args),
     /// Identify the kinematic error parameters from a recording (conventional calibration).
     Identify(identify::Args),
+    /// Rig-file tools: `rigcal rig from-urdf ROBOT.urdf --base LINK --tip LINK --out RIG.toml`.
+    Rig(rig_cmd::Args),
     /// Turn a tracker or motion-capture CSV into a recording (mm, degrees, the rig's joint order).
     Import(import::Args),
     /// Fit the rigid transform between the instrument's frame and the world.
@@ -64,6 +67,7 @@ pub fn main() -> ExitCode {
         Command::Identify(a) => identify::run(a),
         Command::Register(a) => register::run(a),
         Command::Import(a) => import::run(a),
+        Command::Rig(a) => rig_cmd::run(a),
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Evaluate(a) => evaluate::run(a),

@@ -32,6 +32,7 @@ mod chain;
 mod ik;
 mod params;
 mod spherical;
+pub mod urdf;
 
 pub use chain::{
     five_par_transform, FixedPose, JointKind, JointSpec, LinkParams, SerialChain, Transform,

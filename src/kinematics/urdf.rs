@@ -1,0 +1,296 @@
+//! A serial chain from a URDF, in the five-parameter convention (see [`crate::kinematics`]).
+//!
+//! The URDF is read with `urdf-rs`; the chain from the base link to the tip link is followed
+//! joint by joint (fixed joints fold into the next transform). At q = 0 every moving joint is a
+//! line in the base frame (a point and a direction). Frame i sits on joint i's line with z along
+//! it; link i maps frame i to frame i+1 with Rz(θ)·Tz(d)·Tx(a)·Rx(α)·Ry(β):
+//! * skew or intersecting axes: x along their common normal, a its length, d the offset along
+//!   axis i to its foot, α the twist between the axes, β = 0;
+//! * parallel axes (Hayati, as the RV-M2's J2-J3): d = 0, x along the perpendicular from frame
+//!   i's origin to axis i+1, α = 0 (or 180° when anti-parallel), β = 0 nominally but kept as the
+//!   error parameter that a d would be ill-conditioned for.
+//!
+//! The base transform (base link to frame 1) and the tool transform (frame N, turned by q_N, to
+//! the tip link) are poses. URDF lengths are metres and angles radians; the result is mm and rad.
+
+use super::{JointKind, LinkParams};
+use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+
+/// Why a URDF chain cannot be converted.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum UrdfError {
+    /// The file is not a valid URDF.
+    #[error("{0}")]
+    Parse(String),
+    /// A link is not in the file.
+    #[error("no link named `{0}` in the URDF")]
+    NoLink(String),
+    /// The tip does not descend from the base.
+    #[error("link `{tip}` is not below `{base}` in the URDF's tree")]
+    NotAChain {
+        /// Base link.
+        base: String,
+        /// Tip link.
+        tip: String,
+    },
+    /// A joint type rigcal cannot model as one serial joint.
+    #[error("joint `{joint}` is {kind}: only revolute, continuous, prismatic and fixed joints form a serial chain")]
+    Unsupported {
+        /// Joint name.
+        joint: String,
+        /// Its type.
+        kind: String,
+    },
+    /// A moving joint has a zero axis.
+    #[error("joint `{0}` has a zero axis")]
+    ZeroAxis(String),
+}
+
+/// One moving joint of the converted chain.
+#[derive(Debug, Clone)]
+pub struct UrdfJoint {
+    /// Name from the URDF.
+    pub name: String,
+    /// Revolute (continuous included) or prismatic.
+    pub kind: JointKind,
+    /// Limits (rad or mm); continuous joints get ±180°.
+    pub limits: [f64; 2],
+    /// The link transform from this joint's frame to the next.
+    pub link: LinkParams,
+}
+
+/// A URDF chain in the five-parameter convention.
+#[derive(Debug, Clone)]
+pub struct UrdfChain {
+    /// Base link to frame 1 (mm).
+    pub base: Isometry3<f64>,
+    /// The moving joints in order.
+    pub joints: Vec<UrdfJoint>,
+    /// Frame after the last link to the tip link (mm).
+    pub tool: Isometry3<f64>,
+}
+
+struct RawJoint {
+    name: String,
+    kind: JointKind,
+    limits: [f64; 2],
+    /// Pose of the joint frame in the base link frame at q = 0 (mm).
+    frame: Isometry3<f64>,
+    /// Axis in the joint frame.
+    axis: Vector3<f64>,
+}
+
+fn pose(p: &urdf_rs::Pose) -> Isometry3<f64> {
+    let t = Translation3::new(p.xyz[0] * 1000.0, p.xyz[1] * 1000.0, p.xyz[2] * 1000.0);
+    Isometry3::from_parts(
+        t,
+        UnitQuaternion::from_euler_angles(p.rpy[0], p.rpy[1], p.rpy[2]),
+    )
+}
+
+/// Converts the chain of a URDF (text) from `base` link to `tip` link.
+pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, UrdfError> {
+    let robot = urdf_rs::read_from_string(text).map_err(|e| UrdfError::Parse(e.to_string()))?;
+    for l in [base, tip] {
+        if !robot.links.iter().any(|k| k.name == l) {
+            return Err(UrdfError::NoLink(l.to_string()));
+        }
+    }
+    let mut path = Vec::new();
+    let mut link = tip.to_string();
+    while link != base {
+        let Some(j) = robot.joints.iter().find(|j| j.child.link == link) else {
+            return Err(UrdfError::NotAChain {
+                base: base.into(),
+                tip: tip.into(),
+            });
+        };
+        path.push(j);
+        link = j.parent.link.clone();
+    }
+    path.reverse();
+    let mut t = Isometry3::identity();
+    let mut moving = Vec::new();
+    for j in path {
+        t *= pose(&j.origin);
+        let kind = match j.joint_type {
+            urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointKind::Revolute,
+            urdf_rs::JointType::Prismatic => JointKind::Prismatic,
+            urdf_rs::JointType::Fixed => continue,
+            ref other => {
+                return Err(UrdfError::Unsupported {
+                    joint: j.name.clone(),
+                    kind: format!("{other:?}").to_lowercase(),
+                })
+            }
+        };
+        let axis = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
+        if axis.norm() < 1e-12 {
+            return Err(UrdfError::ZeroAxis(j.name.clone()));
+        }
+        let limits = match (j.joint_type.clone(), kind) {
+            (urdf_rs::JointType::Continuous, _) => [-std::f64::consts::PI, std::f64::consts::PI],
+            (_, JointKind::Revolute) => [j.limit.lower, j.limit.upper],
+            (_, JointKind::Prismatic) => [j.limit.lower * 1000.0, j.limit.upper * 1000.0],
+        };
+        moving.push(RawJoint {
+            name: j.name.clone(),
+            kind,
+            limits,
+            frame: t,
+            axis: axis.normalize(),
+        });
+    }
+    let tip_pose = t;
+    Ok(convert(moving, tip_pose))
+}
+
+/// The frame with origin `o`, z along `z`, x along `x` (made orthogonal).
+fn frame(o: Vector3<f64>, z: Vector3<f64>, x: Vector3<f64>) -> Isometry3<f64> {
+    let z = z.normalize();
+    let x = (x - z * z.dot(&x)).normalize();
+    let y = z.cross(&x);
+    let m = nalgebra::Matrix3::from_columns(&[x, y, z]);
+    Isometry3::from_parts(Translation3::from(o), UnitQuaternion::from_matrix(&m))
+}
+
+fn any_perpendicular(z: &Vector3<f64>) -> Vector3<f64> {
+    let c = if z.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    z.cross(&c).normalize()
+}
+
+fn signed_angle(from: &Vector3<f64>, to: &Vector3<f64>, about: &Vector3<f64>) -> f64 {
+    from.cross(to).dot(about).atan2(from.dot(to))
+}
+
+fn convert(joints: Vec<RawJoint>, tip: Isometry3<f64>) -> UrdfChain {
+    // Joint lines in the base frame at q = 0.
+    let lines: Vec<(Vector3<f64>, Vector3<f64>)> = joints
+        .iter()
+        .map(|j| (j.frame.translation.vector, j.frame.rotation * j.axis))
+        .collect();
+    let n = lines.len();
+    let first_x = if n > 1 {
+        common_normal(&lines[0], &lines[1]).map(|(_, _, d)| d)
+    } else {
+        None
+    };
+    let z0 = lines.first().map(|l| l.1).unwrap_or_else(Vector3::z);
+    let x0 = first_x.unwrap_or_else(|| any_perpendicular(&z0));
+    let mut current = frame(lines.first().map(|l| l.0).unwrap_or_default(), z0, x0);
+    let base = current;
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let zi = current.rotation * Vector3::z();
+        let xi = current.rotation * Vector3::x();
+        let oi = current.translation.vector;
+        let (link, next) = if i + 1 < n {
+            let (p2, z2) = lines[i + 1];
+            link_to(oi, zi, xi, p2, z2)
+        } else {
+            (LinkParams::default(), current)
+        };
+        out.push(UrdfJoint {
+            name: joints[i].name.clone(),
+            kind: joints[i].kind,
+            limits: joints[i].limits,
+            link,
+        });
+        current = next;
+    }
+    UrdfChain {
+        base,
+        joints: out,
+        tool: current.inverse() * tip,
+    }
+}
+
+/// Common normal of two skew or intersecting lines: foot on the first, foot on the second, and
+/// the unit direction from first to second (z1 × z2 when they intersect). None when parallel.
+fn common_normal(
+    l1: &(Vector3<f64>, Vector3<f64>),
+    l2: &(Vector3<f64>, Vector3<f64>),
+) -> Option<(Vector3<f64>, Vector3<f64>, Vector3<f64>)> {
+    let (p1, z1) = l1;
+    let (p2, z2) = l2;
+    let c = z1.cross(z2);
+    if c.norm() < 1e-9 {
+        return None;
+    }
+    let w = p1 - p2;
+    let b = z1.dot(z2);
+    let d = z1.dot(&w);
+    let e = z2.dot(&w);
+    let den = 1.0 - b * b;
+    let s = (b * e - d) / den;
+    let t = (e - b * d) / den;
+    let f1 = p1 + z1 * s;
+    let f2 = p2 + z2 * t;
+    let v = f2 - f1;
+    let dir = if v.norm() > 1e-9 {
+        v.normalize()
+    } else {
+        c.normalize()
+    };
+    Some((f1, f2, dir))
+}
+
+/// The link from frame (o, z, x) to the joint line (p2, z2), and the next frame.
+fn link_to(
+    o: Vector3<f64>,
+    z: Vector3<f64>,
+    x: Vector3<f64>,
+    p2: Vector3<f64>,
+    z2: Vector3<f64>,
+) -> (LinkParams, Isometry3<f64>) {
+    match common_normal(&(o, z), &(p2, z2)) {
+        Some((f1, f2, nx)) => {
+            let theta = signed_angle(&x, &nx, &z);
+            let d = (f1 - o).dot(&z);
+            let a = (f2 - f1).dot(&nx);
+            let alpha = signed_angle(&z, &z2, &nx);
+            (
+                LinkParams {
+                    theta,
+                    d,
+                    a,
+                    alpha,
+                    beta: 0.0,
+                },
+                frame(f2, z2, nx),
+            )
+        }
+        None => {
+            let v = p2 - o;
+            let perp = v - z * z.dot(&v);
+            let nx = if perp.norm() > 1e-9 {
+                perp.normalize()
+            } else {
+                x
+            };
+            let theta = signed_angle(&x, &nx, &z);
+            let a = perp.dot(&nx);
+            let alpha = if z.dot(&z2) < 0.0 {
+                std::f64::consts::PI
+            } else {
+                0.0
+            };
+            let origin = o + nx * a;
+            (
+                LinkParams {
+                    theta,
+                    d: 0.0,
+                    a,
+                    alpha,
+                    beta: 0.0,
+                },
+                frame(origin, z2, nx),
+            )
+        }
+    }
+}
