@@ -60,10 +60,15 @@ pub fn run(a: Args) -> Result<()> {
         if obs.is_empty() {
             bail!("held-out recording {}: no measured rows", dir.display());
         }
+        // "Nominal" keeps the fitted frame and marker, so it compares kinematics, not frames.
+        let mut nominal = result.params.clone();
+        for (k, id) in chain.layout().ids().iter().enumerate() {
+            if !matches!(id.transform, TransformId::Frame | TransformId::Marker) {
+                nominal.set(k, 0.0);
+            }
+        }
         let before = crate::identification::ResidualStats::of(&crate::identification::errors(
-            &chain,
-            &obs,
-            &ErrorParams::zeros(chain.layout()),
+            &chain, &obs, &nominal,
         ));
         let after = crate::identification::ResidualStats::of(&crate::identification::errors(
             &chain,
@@ -71,7 +76,7 @@ pub fn run(a: Args) -> Result<()> {
             &result.params,
         ));
         println!(
-            "held-out {} ({} points): nominal RMS {:.4} mm, max {:.4} mm → fitted RMS {:.4} mm, max {:.4} mm",
+            "held-out {} ({} points): nominal kinematics RMS {:.4} mm, max {:.4} mm → fitted RMS {:.4} mm, max {:.4} mm",
             dir.display(),
             obs.len(),
             before.rms_mm,
