@@ -3,6 +3,7 @@
 mod calibrate;
 mod compensate;
 mod demo;
+mod diagnose;
 mod identify;
 mod observability;
 mod register;
@@ -42,6 +43,8 @@ enum Command {
     /// The variable D-H parameter model: recursive workspace division, CEPs per region and an
     /// FCMAC (or CMAC) that generalises them.
     Calibrate(calibrate::Args),
+    /// Name the physics the geometric model leaves out of a recording (or say it does not know).
+    Diagnose(diagnose::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
     Simulate(simulate::Args),
     /// Serve one device's emulator on a pseudo-terminal (prints the port path).
@@ -59,6 +62,7 @@ pub fn main() -> ExitCode {
         Command::Register(a) => register::run(a),
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
     };
