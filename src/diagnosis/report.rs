@@ -339,8 +339,9 @@ impl Report {
             if !e.not_separable_from.is_empty() {
                 let _ = writeln!(
                     s,
-                    "  {} on {} or {}: not separable with these poses",
+                    "  {}{} on {} or {}: not separable with these poses",
                     e.kind,
+                    order,
                     idx,
                     e.not_separable_from.join(" or ")
                 );
