@@ -18,6 +18,7 @@
 pub mod cli;
 pub mod compensation;
 pub mod devices;
+pub mod diagnosis;
 pub mod division;
 pub mod identification;
 pub mod kinematics;

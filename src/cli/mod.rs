@@ -3,6 +3,7 @@
 mod calibrate;
 mod compensate;
 mod demo;
+mod diagnose;
 mod evaluate;
 mod identify;
 mod import;
@@ -51,6 +52,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Position error along paths of a simulated arm with each model, CEP traces and plots.
     Evaluate(evaluate::Args),
+    /// Name the physics the geometric model leaves out of a recording (or say it does not know).
+    Diagnose(diagnose::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
     Simulate(simulate::Args),
     /// Serve one device's emulator on a pseudo-terminal (prints the port path).
@@ -71,6 +74,7 @@ pub fn main() -> ExitCode {
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
     };

@@ -1,0 +1,51 @@
+//! `rigcal diagnose`: what physics the nominal model leaves out of a recording.
+
+use crate::diagnosis::{diagnose, Options};
+use crate::rig::Rig;
+use anyhow::{Context, Result};
+use std::path::PathBuf;
+
+/// Arguments of `rigcal diagnose`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Rig file (TOML).
+    #[arg(long)]
+    rig: PathBuf,
+    /// Recording: a directory with measurements.csv, or a CSV file.
+    #[arg(long)]
+    recording: PathBuf,
+    /// Write the diagnosis report (JSON, shared/spec/recordings.md) here.
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write SVG residual plots into this directory.
+    #[arg(long)]
+    plots: Option<PathBuf>,
+    /// Held-out recordings to check the named effects on (default: a split of time blocks).
+    #[arg(long, num_args = 1..)]
+    heldout: Vec<PathBuf>,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let rig = Rig::load(&a.rig)?;
+    let rec = super::identify::read_recording(&rig, &a.recording)?;
+    let heldout = a
+        .heldout
+        .iter()
+        .map(|p| super::identify::read_recording(&rig, p))
+        .collect::<Result<Vec<_>>>()?;
+    let report = diagnose(&rig, &rec, &Options { heldout })
+        .with_context(|| format!("diagnosing {}", a.recording.display()))?;
+    println!("recording {}", a.recording.display());
+    print!("{}", report.text());
+    if let Some(path) = &a.json {
+        let text = serde_json::to_string_pretty(&report)?;
+        std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
+        println!("report written to {}", path.display());
+    }
+    if let Some(dir) = &a.plots {
+        let written = crate::diagnosis::plots::write(&rig, &rec, dir)
+            .with_context(|| format!("writing plots to {}", dir.display()))?;
+        println!("{written} plot(s) written to {}", dir.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,420 @@
+//! Diagnosis: what physics the nominal (geometric) model leaves out of a recording.
+//!
+//! Steps (issue 4/7, conventions §1 and §9):
+//! 1. fit the standard model: the identifiable geometric parameters (the registration is part of
+//!    them, so a registration offset is absorbed and never named);
+//! 2. decide whether a mismatch remains: a lack-of-fit F-test against the pure error of repeated
+//!    poses ([`noise`]) together with the best single candidate's partial F-test, Bonferroni
+//!    corrected, α = 0.01 overall;
+//! 3. locate it ([`report::locate`]): axis, joint ranges, correlation with joint angle, approach
+//!    direction, time, table coordinate, gravity torque;
+//! 4. name it ([`select`]): candidates from the library (one file each) projected onto the
+//!    orthogonal complement of the geometric Jacobian, forward selection with partial F-tests;
+//! 5. refit with the chosen effects and report RMS before/after on the fitted and held-out data;
+//! 6. test what is left against flexible unnamed bases and report `unexplained` when it matters.
+//!
+//! Conventions: residual r = measured − modelled (mm), 3 rows per measurement (x, y, z, world);
+//! joint values in radians (mm for prismatic joints) inside; time in seconds; the "noise floor"
+//! is the 3-D RMS of pure noise, √3·σ with σ the per-coordinate standard deviation, so it
+//! compares with the RMS figures of [`ResidualStats`](crate::identification::ResidualStats).
+//! The diagnosis reads the recording and the rig only, never a simulated world.
+
+pub mod backlash;
+pub mod compliance;
+pub mod drift;
+pub mod noise;
+pub mod plots;
+pub mod report;
+pub mod select;
+pub mod stats;
+pub mod table_scale;
+pub mod table_squareness;
+pub mod transmission;
+
+pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
+
+use crate::identification::registration::kabsch;
+use crate::identification::{analyse, candidate_order, fit, FitError, FitOptions, Observation};
+use crate::kinematics::{ErrorParams, Robot, SerialChain};
+use crate::recording::{Recording, Status};
+use crate::rig::{FrameMode, Rig};
+use nalgebra::{DMatrix, Vector3};
+
+/// Overall false-claim rate of the diagnosis.
+pub const ALPHA: f64 = 0.01;
+/// A candidate is numerically absorbed by the geometry below this visible fraction.
+pub const MIN_VISIBLE: f64 = 1e-3;
+/// Projected candidates correlating above this are reported as not separable.
+pub const SEPARABLE_CORRELATION: f64 = 0.95;
+/// Degrees of freedom of pure error needed to use it as the noise floor.
+pub const MIN_PURE_ERROR_DOF: usize = 60;
+
+/// Why a diagnosis failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum DiagnoseError {
+    /// The recording has no measured rows.
+    #[error("the recording has no measured rows (status ok with x_mm, y_mm, z_mm)")]
+    NoMeasurements,
+    /// The recording's joints do not match the rig.
+    #[error("the recording has {got} joints but the rig has {expected}")]
+    JointCount {
+        /// Joints of the rig.
+        expected: usize,
+        /// Joints in the recording.
+        got: usize,
+    },
+    /// The standard (geometric) fit failed.
+    #[error("the geometric fit failed: {0}")]
+    Fit(#[from] FitError),
+    /// A plot could not be written.
+    #[error("plot: {0}")]
+    Plot(String),
+    /// Too few measurements for the tests.
+    #[error("{measurements} measurements are too few to diagnose {unknowns} unknowns")]
+    TooFew {
+        /// Measurements.
+        measurements: usize,
+        /// Unknowns of the largest model.
+        unknowns: usize,
+    },
+}
+
+/// What a candidate's index refers to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Index {
+    /// A joint (0-based inside, 1-based in reports).
+    Joint(usize),
+    /// A world/table axis (0 x, 1 y, 2 z).
+    Axis(usize),
+    /// A pair of table axes.
+    Axes(usize, usize),
+}
+
+/// Axis names.
+pub const AXES: [&str; 3] = ["x", "y", "z"];
+
+impl Index {
+    /// "joint 2", "axis z", "axes x–y".
+    pub fn label(&self) -> String {
+        match *self {
+            Index::Joint(j) => format!("joint {}", j + 1),
+            Index::Axis(a) => format!("axis {}", AXES[a]),
+            Index::Axes(a, b) => format!("axes {}–{}", AXES[a], AXES[b]),
+        }
+    }
+}
+
+/// One named parameter of a fitted effect: value and standard deviation in report units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Param {
+    /// Name with unit, e.g. `lost_motion_deg`.
+    pub name: String,
+    /// Value.
+    pub value: f64,
+    /// Standard deviation (NaN when not available).
+    pub sigma: f64,
+}
+
+/// A piece of left-out physics the diagnosis can name: a small linear model whose regressor
+/// columns (3 rows per measurement, mm per unit coefficient) span what it can do to the
+/// measured points.
+pub trait Candidate: Send + Sync + std::fmt::Debug {
+    /// The report vocabulary's kind, e.g. `backlash`.
+    fn kind(&self) -> &'static str;
+    /// Which joint or axis.
+    fn index(&self) -> Index;
+    /// Harmonic order, for kinds that have one.
+    fn order(&self) -> Option<u32> {
+        None
+    }
+    /// A short label: "backlash on joint 2".
+    fn label(&self) -> String {
+        match self.order() {
+            Some(n) => format!("{} (order {n}) on {}", self.kind(), self.index().label()),
+            None => format!("{} on {}", self.kind(), self.index().label()),
+        }
+    }
+    /// The regressor columns over the recording's measurements, or None when the recording
+    /// cannot show this effect (no time, no table columns, a joint that never moves).
+    fn regressors(&self, d: &Data) -> Option<DMatrix<f64>>;
+    /// A plain-language explanation.
+    fn explanation(&self) -> String;
+    /// Named parameters from the fitted coefficients and their covariance.
+    fn params(&self, coef: &[f64], cov: &DMatrix<f64>, d: &Data) -> Vec<Param>;
+}
+
+/// Everything a candidate may use: the recording's measurements and the fitted geometry.
+#[derive(Debug, Clone)]
+pub struct Data {
+    /// The chain (with the fitted frame when the frame is free).
+    pub chain: SerialChain,
+    /// The fitted geometric error parameters.
+    pub e: ErrorParams,
+    /// Measurements (joint values, measured point).
+    pub obs: Vec<Observation>,
+    /// Time (s) of each measurement, when the recording has it for every measured row.
+    pub t_s: Option<Vec<f64>>,
+    /// Approach direction (−1, 0, +1) of each joint at each measurement.
+    pub direction: Vec<Vec<i8>>,
+    /// Table-frame coordinates of each measurement, when every measured row has them.
+    pub table: Option<Vec<Vector3<f64>>>,
+    /// Region of each measurement.
+    pub region: Vec<Option<String>>,
+    /// Joint Jacobian (3 × N, mm per rad) at each measurement.
+    pub joint_jacobian: Vec<DMatrix<f64>>,
+    /// Joints that move in the recording (0-based).
+    pub moving: Vec<usize>,
+}
+
+impl Data {
+    /// Measurements.
+    pub fn len(&self) -> usize {
+        self.obs.len()
+    }
+
+    /// True without measurements.
+    pub fn is_empty(&self) -> bool {
+        self.obs.is_empty()
+    }
+
+    /// A subset of the measurements (indices into `obs`).
+    pub fn subset(&self, idx: &[usize]) -> Data {
+        Data {
+            chain: self.chain.clone(),
+            e: self.e.clone(),
+            obs: idx.iter().map(|&i| self.obs[i].clone()).collect(),
+            t_s: self
+                .t_s
+                .as_ref()
+                .map(|t| idx.iter().map(|&i| t[i]).collect()),
+            direction: idx.iter().map(|&i| self.direction[i].clone()).collect(),
+            table: self
+                .table
+                .as_ref()
+                .map(|t| idx.iter().map(|&i| t[i]).collect()),
+            region: idx.iter().map(|&i| self.region[i].clone()).collect(),
+            joint_jacobian: idx
+                .iter()
+                .map(|&i| self.joint_jacobian[i].clone())
+                .collect(),
+            moving: self.moving.clone(),
+        }
+    }
+
+    /// Columns `scale(i) · joint column j` stacked over measurements.
+    pub fn joint_column(&self, j: usize, scale: impl Fn(usize) -> f64) -> DMatrix<f64> {
+        let mut m = DMatrix::zeros(3 * self.len(), 1);
+        for i in 0..self.len() {
+            let s = scale(i);
+            for r in 0..3 {
+                m[(3 * i + r, 0)] = s * self.joint_jacobian[i][(r, j)];
+            }
+        }
+        m
+    }
+
+    /// Columns `scale(i) · unit vector of axis a` stacked over measurements.
+    pub fn axis_column(&self, a: usize, scale: impl Fn(usize) -> f64) -> DMatrix<f64> {
+        let mut m = DMatrix::zeros(3 * self.len(), 1);
+        for i in 0..self.len() {
+            m[(3 * i + a, 0)] = scale(i);
+        }
+        m
+    }
+}
+
+/// The candidate library for a joint count: every kind on every joint or axis.
+pub fn library(dof: usize) -> Vec<Box<dyn Candidate>> {
+    let mut v: Vec<Box<dyn Candidate>> = Vec::new();
+    for j in 0..dof {
+        v.push(Box::new(compliance::JointCompliance { joint: j }));
+        v.push(Box::new(backlash::Backlash { joint: j }));
+        for n in 1..=transmission::MAX_ORDER {
+            v.push(Box::new(transmission::TransmissionError {
+                joint: j,
+                order: n,
+            }));
+        }
+        v.push(Box::new(drift::ThermalDrift {
+            target: Index::Joint(j),
+        }));
+    }
+    for a in 0..3 {
+        v.push(Box::new(drift::ThermalDrift {
+            target: Index::Axis(a),
+        }));
+    }
+    for a in 0..3 {
+        v.push(Box::new(table_scale::TableScale { axis: a }));
+    }
+    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+        v.push(Box::new(table_squareness::TableSquareness {
+            first: a,
+            second: b,
+        }));
+    }
+    v
+}
+
+/// Options of a diagnosis.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// Held-out recordings; without them a split of whole time blocks is held out.
+    pub heldout: Vec<Recording>,
+}
+
+/// The standard model of a recording: the measurements, chain, fitted geometry and residuals.
+#[derive(Debug, Clone)]
+pub struct Standard {
+    /// The data for candidates.
+    pub data: Data,
+    /// Layout indices of the fitted geometric parameters.
+    pub free: Vec<usize>,
+    /// Residuals after the geometric fit, stacked (3 per measurement, mm).
+    pub residual: nalgebra::DVector<f64>,
+    /// The geometric Jacobian at the fit (3 per measurement × fitted parameters).
+    pub jacobian: DMatrix<f64>,
+}
+
+/// Measurement data of a recording with the chain and geometry given (no fit).
+pub fn prepare(
+    chain: &SerialChain,
+    e: &ErrorParams,
+    rec: &Recording,
+) -> Result<Data, DiagnoseError> {
+    let n = chain.joints().len();
+    let mut dir = vec![0i8; n];
+    let mut prev: Option<&[f64]> = None;
+    let mut obs = Vec::new();
+    let mut times = Vec::new();
+    let mut direction = Vec::new();
+    let mut table = Vec::new();
+    let mut region = Vec::new();
+    for row in &rec.rows {
+        if row.q.len() != n {
+            return Err(DiagnoseError::JointCount {
+                expected: n,
+                got: row.q.len(),
+            });
+        }
+        if let Some(p) = prev {
+            for j in 0..n {
+                let d = row.q[j] - p[j];
+                if d > 0.0 {
+                    dir[j] = 1;
+                } else if d < 0.0 {
+                    dir[j] = -1;
+                }
+            }
+        }
+        prev = Some(&row.q);
+        let (Status::Ok, Some(p)) = (&row.status, row.position) else {
+            continue;
+        };
+        obs.push(Observation {
+            q: row.q.clone(),
+            p,
+        });
+        times.push(row.t_s);
+        direction.push(dir.clone());
+        table.push(row.table);
+        region.push(row.region.clone());
+    }
+    if obs.is_empty() {
+        return Err(DiagnoseError::NoMeasurements);
+    }
+    let t_s = times.iter().copied().collect::<Option<Vec<f64>>>();
+    let table = table.iter().copied().collect::<Option<Vec<_>>>();
+    let joint_jacobian = obs.iter().map(|o| chain.joint_jacobian(&o.q, e)).collect();
+    let moving = (0..n)
+        .filter(|&j| {
+            let (lo, hi) = obs.iter().fold((f64::MAX, f64::MIN), |(a, b), o| {
+                (a.min(o.q[j]), b.max(o.q[j]))
+            });
+            hi - lo > 1e-9
+        })
+        .collect();
+    Ok(Data {
+        chain: chain.clone(),
+        e: e.clone(),
+        obs,
+        t_s,
+        direction,
+        table,
+        region,
+        joint_jacobian,
+        moving,
+    })
+}
+
+/// Fits the standard model: the identifiable geometric parameters (registration included).
+pub fn standard_fit(rig: &Rig, rec: &Recording) -> Result<Standard, DiagnoseError> {
+    let nominal = ErrorParams::zeros(rig.chain.layout());
+    let pre = prepare(&rig.chain, &nominal, rec)?;
+    let chain = if rig.calibration.measurement_frame == FrameMode::Free {
+        let model: Vec<_> = pre
+            .obs
+            .iter()
+            .map(|o| rig.chain.position(&o.q, &nominal))
+            .collect();
+        let measured: Vec<_> = pre.obs.iter().map(|o| o.p).collect();
+        rig.chain.with_frame(kabsch(&model, &measured))
+    } else {
+        rig.chain.clone()
+    };
+    let poses: Vec<Vec<f64>> = pre.obs.iter().map(|o| o.q.clone()).collect();
+    let ident = analyse(&chain, &poses, &candidate_order(rig));
+    let result = fit(
+        &chain,
+        &pre.obs,
+        &nominal,
+        &ident.basis,
+        &FitOptions::default(),
+    )?;
+    let data = prepare(&chain, &result.params, rec)?;
+    let jacobian = crate::identification::identifiability::stacked_jacobian(
+        &chain,
+        &result.params,
+        &poses,
+        &ident.basis,
+    );
+    let residual = residual_of(&data);
+    Ok(Standard {
+        data,
+        free: ident.basis,
+        residual,
+        jacobian,
+    })
+}
+
+/// Stacked residuals (measured − modelled) of the data at its geometry.
+pub fn residual_of(d: &Data) -> nalgebra::DVector<f64> {
+    let mut r = nalgebra::DVector::zeros(3 * d.len());
+    for (i, o) in d.obs.iter().enumerate() {
+        let v = o.p - d.chain.position(&o.q, &d.e);
+        for k in 0..3 {
+            r[3 * i + k] = v[k];
+        }
+    }
+    r
+}
+
+/// Diagnoses a recording: see the module documentation.
+pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, DiagnoseError> {
+    let std = standard_fit(rig, rec)?;
+    let heldout = opts
+        .heldout
+        .iter()
+        .map(|h| {
+            let d = prepare(&std.data.chain, &std.data.e, h)?;
+            let poses: Vec<Vec<f64>> = d.obs.iter().map(|o| o.q.clone()).collect();
+            let g = crate::identification::identifiability::stacked_jacobian(
+                &d.chain, &d.e, &poses, &std.free,
+            );
+            let r = residual_of(&d);
+            Ok((d, g, r))
+        })
+        .collect::<Result<Vec<_>, DiagnoseError>>()?;
+    select::run(&std, &library(rig.chain.joints().len()), &heldout)
+}

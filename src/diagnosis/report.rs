@@ -1,0 +1,371 @@
+//! The diagnosis report (shared/spec/recordings.md, "Diagnosis report"), its terminal text, and
+//! where a residual lives in the workspace.
+//!
+//! Units: mm for sizes and RMS (3-D RMS over measurements), degrees for joint ranges.
+
+use super::compliance::unit_torques;
+use super::{Data, AXES};
+use crate::kinematics::{JointKind, Robot};
+use nalgebra::DVector;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt::Write;
+
+/// The whole report.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Report {
+    /// Whether a mismatch remains after the geometric fit, and where.
+    pub mismatch: Mismatch,
+    /// The named effects.
+    pub effects: Vec<EffectReport>,
+    /// A significant structured residual remains that no candidate explains.
+    pub unexplained: bool,
+    /// Where the unexplained residual is.
+    pub unexplained_where: Vec<WhereReport>,
+    /// Candidates the geometry absorbs entirely (visible fraction below 1e-3).
+    pub absorbed: Vec<String>,
+    /// RMS before and after.
+    pub fit: FitSummary,
+}
+
+/// The mismatch test.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Mismatch {
+    /// A significant mismatch remains after the geometric fit.
+    pub significant: bool,
+    /// 3-D RMS of the residual after the geometric fit (mm).
+    pub rms_mm: f64,
+    /// 3-D RMS of pure noise, √3·σ (mm).
+    pub noise_floor_mm: f64,
+    /// How the noise floor was estimated.
+    pub noise_source: String,
+    /// p-value of the lack-of-fit test of the geometric model (when pure error is available).
+    pub lack_of_fit_p: Option<f64>,
+    /// The best single candidate.
+    pub best_candidate: Option<String>,
+    /// Its partial F-test p-value (before Bonferroni).
+    pub best_candidate_p: Option<f64>,
+    /// Where the mismatch is.
+    #[serde(rename = "where")]
+    pub where_: Vec<WhereReport>,
+}
+
+/// Where a residual lives.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct WhereReport {
+    /// Plain language.
+    pub description: String,
+    /// Per joint, the range (degrees, or mm for prismatic joints) where it is largest; null for
+    /// joints it does not depend on.
+    pub joint_ranges_deg: Vec<Option<[f64; 2]>>,
+    /// The axis with the largest residual.
+    pub axis: String,
+    /// Features the residual correlates with most, with the correlation coefficient.
+    pub correlates_with: Vec<(String, f64)>,
+}
+
+/// One named effect.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct EffectReport {
+    /// The vocabulary's kind.
+    pub kind: String,
+    /// Joint, 1-based.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<usize>,
+    /// Axis.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axis: Option<String>,
+    /// Axis pair.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axes: Option<[String; 2]>,
+    /// Harmonic order.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub order: Option<u32>,
+    /// Named parameters (units in the names).
+    pub params: BTreeMap<String, f64>,
+    /// Their standard deviations, where available.
+    pub params_sigma: BTreeMap<String, f64>,
+    /// 3-D RMS of the displacement the effect causes at the measured poses (mm).
+    pub size_mm: f64,
+    /// Its standard deviation (mm).
+    pub size_sigma_mm: f64,
+    /// Fraction of the fitted effect that the geometry does not absorb.
+    pub visible_fraction: f64,
+    /// The same for the candidate's regressors (columns scaled to unit norm).
+    pub visible_fraction_of_candidate: f64,
+    /// p-value of its partial F-test when it was selected (before Bonferroni).
+    pub p_value: f64,
+    /// Plain language.
+    pub explanation: String,
+    /// Candidates these poses cannot tell apart from this one ("X or Y").
+    pub not_separable_from: Vec<String>,
+}
+
+/// RMS before and after.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct FitSummary {
+    /// Measurements fitted.
+    pub measurements: usize,
+    /// Geometric parameters fitted.
+    pub geometric_parameters: usize,
+    /// 3-D RMS after the geometric fit (mm).
+    pub before_rms_mm: f64,
+    /// 3-D RMS after the refit with the named effects (mm).
+    pub after_rms_mm: f64,
+    /// Held-out 3-D RMS, geometric model (mm).
+    pub heldout_before_rms_mm: Option<f64>,
+    /// Held-out 3-D RMS, with the named effects (mm).
+    pub heldout_after_rms_mm: Option<f64>,
+    /// What was held out.
+    pub heldout: String,
+}
+
+fn pearson(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().max(1) as f64;
+    let ma = a.iter().sum::<f64>() / n;
+    let mb = b.iter().sum::<f64>() / n;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        sab += (x - ma) * (y - mb);
+        saa += (x - ma) * (x - ma);
+        sbb += (y - mb) * (y - mb);
+    }
+    if saa <= 0.0 || sbb <= 0.0 {
+        0.0
+    } else {
+        sab / (saa * sbb).sqrt()
+    }
+}
+
+/// Where the stacked residual `r` is: its largest axis, the joint range where it is largest and
+/// what it correlates with (joint angle, approach direction, time, table coordinate, gravity
+/// torque of the generic unit-mass model).
+pub fn locate(d: &Data, r: &DVector<f64>, what: &str) -> WhereReport {
+    let n = d.len();
+    let axis_rms: Vec<f64> = (0..3)
+        .map(|a| ((0..n).map(|i| r[3 * i + a].powi(2)).sum::<f64>() / n.max(1) as f64).sqrt())
+        .collect();
+    let axis = (0..3)
+        .max_by(|&a, &b| axis_rms[a].total_cmp(&axis_rms[b]))
+        .unwrap_or(0);
+    let norm2: Vec<f64> = (0..n)
+        .map(|i| r[3 * i].powi(2) + r[3 * i + 1].powi(2) + r[3 * i + 2].powi(2))
+        .collect();
+    let overall = (norm2.iter().sum::<f64>() / n.max(1) as f64).sqrt();
+    let joints = d.chain.joints();
+    let unit = |j: usize, v: f64| match joints[j].kind {
+        JointKind::Revolute => v.to_degrees(),
+        JointKind::Prismatic => v,
+    };
+    // Joint bins: the joint whose binned RMS varies most.
+    const BINS: usize = 6;
+    let mut best: Option<(usize, f64, [f64; 2], f64)> = None;
+    for &j in &d.moving {
+        let q: Vec<f64> = d.obs.iter().map(|o| o.q[j]).collect();
+        let lo = q.iter().copied().fold(f64::MAX, f64::min);
+        let hi = q.iter().copied().fold(f64::MIN, f64::max);
+        let w = (hi - lo) / BINS as f64;
+        let mut ss = [0.0; BINS];
+        let mut cnt = [0usize; BINS];
+        for (i, v) in q.iter().enumerate() {
+            let b = (((v - lo) / w) as usize).min(BINS - 1);
+            ss[b] += norm2[i];
+            cnt[b] += 1;
+        }
+        let rms: Vec<f64> = (0..BINS)
+            .map(|b| {
+                if cnt[b] > 0 {
+                    (ss[b] / cnt[b] as f64).sqrt()
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let top = (0..BINS)
+            .max_by(|&a, &b| rms[a].total_cmp(&rms[b]))
+            .unwrap_or(0);
+        let min = rms
+            .iter()
+            .copied()
+            .filter(|v| *v > 0.0)
+            .fold(f64::MAX, f64::min);
+        let spread = (rms[top] - min) / overall.max(1e-300);
+        let (mut a, mut b) = (top, top);
+        while a > 0 && rms[a - 1] >= overall {
+            a -= 1;
+        }
+        while b + 1 < BINS && rms[b + 1] >= overall {
+            b += 1;
+        }
+        let range = [unit(j, lo + a as f64 * w), unit(j, lo + (b + 1) as f64 * w)];
+        if best.as_ref().is_none_or(|x| spread > x.1) {
+            best = Some((j, spread, range, rms[top]));
+        }
+    }
+    // Correlations of the largest axis's residual with the features.
+    let ra: Vec<f64> = (0..n).map(|i| r[3 * i + axis]).collect();
+    let mut feats: Vec<(String, Vec<f64>)> = Vec::new();
+    for &j in &d.moving {
+        feats.push((
+            format!("joint {} angle", j + 1),
+            d.obs.iter().map(|o| o.q[j]).collect(),
+        ));
+        feats.push((
+            format!("joint {} approach direction", j + 1),
+            d.direction.iter().map(|s| f64::from(s[j])).collect(),
+        ));
+        feats.push((
+            format!("gravity torque of joint {}", j + 1),
+            d.obs
+                .iter()
+                .map(|o| unit_torques(d, &o.q, j).iter().sum())
+                .collect(),
+        ));
+    }
+    if let Some(t) = &d.t_s {
+        feats.push(("time".into(), t.clone()));
+    }
+    if let Some(t) = &d.table {
+        for (a, name) in AXES.iter().enumerate() {
+            feats.push((format!("table {name}"), t.iter().map(|v| v[a]).collect()));
+        }
+    }
+    let mut corr: Vec<(String, f64)> = feats
+        .into_iter()
+        .map(|(name, v)| {
+            let c = pearson(&ra, &v);
+            (name, c)
+        })
+        .filter(|(_, c)| c.is_finite())
+        .collect();
+    corr.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
+    corr.truncate(3);
+    let mut ranges = vec![None; joints.len()];
+    let mut desc = format!(
+        "{what}: RMS {overall:.4} mm, largest along {} ({:.4} mm)",
+        AXES[axis], axis_rms[axis]
+    );
+    if let Some((j, _, range, top)) = best {
+        ranges[j] = Some(range);
+        let _ = write!(
+            desc,
+            "; largest for joint {} in [{:.0}, {:.0}] (RMS {:.4} mm there)",
+            j + 1,
+            range[0],
+            range[1],
+            top
+        );
+    }
+    if let Some((name, c)) = corr.first() {
+        let _ = write!(
+            desc,
+            "; {} residual correlates most with {name} (r = {c:.2})",
+            AXES[axis]
+        );
+    }
+    WhereReport {
+        description: desc,
+        joint_ranges_deg: ranges,
+        axis: AXES[axis].to_string(),
+        correlates_with: corr,
+    }
+}
+
+impl Report {
+    /// The report as terminal text.
+    pub fn text(&self) -> String {
+        let mut s = String::new();
+        let m = &self.mismatch;
+        let _ = writeln!(
+            s,
+            "geometric fit: {} measurements, {} parameters; residual RMS {:.4} mm",
+            self.fit.measurements, self.fit.geometric_parameters, m.rms_mm
+        );
+        let _ = writeln!(
+            s,
+            "noise floor: {:.4} mm (3-D RMS), from {}",
+            m.noise_floor_mm, m.noise_source
+        );
+        if let Some(p) = m.lack_of_fit_p {
+            let _ = writeln!(s, "lack-of-fit test of the geometric model: p = {p:.2e}");
+        }
+        if let (Some(c), Some(p)) = (&m.best_candidate, m.best_candidate_p) {
+            let _ = writeln!(
+                s,
+                "best single candidate: {c} (p = {p:.2e} before Bonferroni)"
+            );
+        }
+        if !m.significant {
+            let _ = writeln!(
+                s,
+                "no significant mismatch: the geometric model explains the recording down to the noise; nothing to name"
+            );
+        } else {
+            let _ = writeln!(s, "significant mismatch remains after the geometric fit");
+            for w in &m.where_ {
+                let _ = writeln!(s, "  where: {}", w.description);
+            }
+        }
+        for e in &self.effects {
+            let idx = match (&e.joint, &e.axis, &e.axes) {
+                (Some(j), _, _) => format!("joint {j}"),
+                (_, Some(a), _) => format!("axis {a}"),
+                (_, _, Some(p)) => format!("axes {}–{}", p[0], p[1]),
+                _ => String::new(),
+            };
+            let order = e.order.map(|o| format!(" (order {o})")).unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "effect: {}{} on {}: {:.4} ± {:.4} mm RMS, {:.0} % visible to the geometry, p = {:.1e}",
+                e.kind,
+                order,
+                idx,
+                e.size_mm,
+                e.size_sigma_mm,
+                100.0 * e.visible_fraction,
+                e.p_value
+            );
+            let _ = writeln!(s, "  {}", e.explanation);
+            for (k, v) in &e.params {
+                match e.params_sigma.get(k) {
+                    Some(sd) => {
+                        let _ = writeln!(s, "  {k} = {v:.5} ± {sd:.5}");
+                    }
+                    None => {
+                        let _ = writeln!(s, "  {k} = {v:.5}");
+                    }
+                }
+            }
+            if !e.not_separable_from.is_empty() {
+                let _ = writeln!(
+                    s,
+                    "  {}{} on {} or {}: not separable with these poses",
+                    e.kind,
+                    order,
+                    idx,
+                    e.not_separable_from.join(" or ")
+                );
+            }
+        }
+        if self.unexplained {
+            let _ = writeln!(s, "unexplained: a significant structured residual remains that no known effect explains");
+            for w in &self.unexplained_where {
+                let _ = writeln!(s, "  where: {}", w.description);
+            }
+        }
+        let f = &self.fit;
+        let _ = writeln!(
+            s,
+            "RMS on the fitted data: {:.4} mm before, {:.4} mm after",
+            f.before_rms_mm, f.after_rms_mm
+        );
+        if let (Some(b), Some(a)) = (f.heldout_before_rms_mm, f.heldout_after_rms_mm) {
+            let _ = writeln!(
+                s,
+                "RMS held out ({}): {b:.4} mm before, {a:.4} mm after",
+                f.heldout
+            );
+        }
+        s
+    }
+}
