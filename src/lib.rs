@@ -26,5 +26,6 @@ pub mod model;
 pub mod protocols;
 pub mod recording;
 pub mod rig;
+pub mod session;
 pub mod transports;
 pub mod world;

@@ -5,7 +5,9 @@ mod compensate;
 mod demo;
 mod identify;
 mod observability;
+mod plan;
 mod register;
+mod session;
 mod sim_device;
 mod simulate;
 
@@ -44,6 +46,11 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
     Simulate(simulate::Args),
+    /// Plan a measurement session: points per region, checked and ordered, with a rig-time
+    /// estimate.
+    Plan(plan::Args),
+    /// Run (or resume) an automatic measurement session on the rig, or a dry run on emulators.
+    Session(session::Args),
     /// Serve one device's emulator on a pseudo-terminal (prints the port path).
     SimDevice(sim_device::Args),
 }
@@ -61,6 +68,8 @@ pub fn main() -> ExitCode {
         Command::Calibrate(a) => calibrate::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
+        Command::Plan(a) => plan::run(a),
+        Command::Session(a) => session::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
