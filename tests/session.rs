@@ -175,7 +175,10 @@ fn a_dry_run_session_end_to_end_is_accepted_by_identify() {
         assert!(m.table.is_some() && m.panel_uv.is_some());
     }
     let info = std::fs::read_to_string(dir.path().join("session.toml")).unwrap();
-    assert!(info.contains("[registration]") && info.contains("rms_mm"), "{info}");
+    assert!(
+        info.contains("[registration]") && info.contains("rms_mm"),
+        "{info}"
+    );
     let out = Command::new(env!("CARGO_BIN_EXE_rigcal"))
         .args(["identify", "--rig", "rigs/rv-m2.toml", "--recording"])
         .arg(dir.path())
