@@ -87,6 +87,9 @@ pub struct PlanOptions {
     pub layer_mm: f64,
     /// Order within a layer.
     pub order: Ordering,
+    /// Room the contact needs below and above the nominal contact height in the table's z
+    /// travel (approach margin + travel clearance, mm); points with less are dropped.
+    pub z_room_mm: f64,
 }
 
 impl Default for PlanOptions {
@@ -98,6 +101,7 @@ impl Default for PlanOptions {
             seed: 1,
             layer_mm: 2.0,
             order: Ordering::NearestNeighbour,
+            z_room_mm: 5.0,
         }
     }
 }
@@ -190,12 +194,29 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
         match rig.measurable(&q) {
             Err(reason) => dropped.push(Dropped { q, reason }),
             Ok(()) => {
+                let t = table_target(rig, &q).ok_or(PlanError::NotTablePanel)?;
+                let travel_z = match &rig.instrument {
+                    Instrument::TablePanel(tp) => tp.travel_mm.z,
+                    _ => f64::MAX,
+                };
+                if t[2] < opts.z_room_mm || t[2] > travel_z - opts.z_room_mm {
+                    // The approach starts below the contact and ends above it: that room must
+                    // lie within the travel, or the pin is already on the panel at the start.
+                    dropped.push(Dropped {
+                        q,
+                        reason: Unmeasurable::TableTravel {
+                            axis: 'z',
+                            position_mm: t[2],
+                            travel_mm: travel_z,
+                        },
+                    });
+                    continue;
+                }
                 let c = space.coords(&q);
                 let region = boxes
                     .iter()
                     .position(|b| b.contains(&c, &space.full))
                     .unwrap_or(0);
-                let t = table_target(rig, &q).ok_or(PlanError::NotTablePanel)?;
                 found.push((region, q, t));
             }
         }

@@ -686,6 +686,12 @@ impl Runner<'_> {
                 self.table_at = None;
                 self.pass_top = Some(self.pass_top.map_or(end_z, |z| z.max(end_z)));
                 let first = first?;
+                if first.table_mm[2] <= start[2] + 0.01 {
+                    return Err(bad_touch(format!(
+                        "touch at the approach start (z {:.3} mm): the pin was already on the panel",
+                        first.table_mm[2]
+                    )));
+                }
                 let off = |t: &Contact| t.touch.u_mm.abs().max(t.touch.v_mm.abs());
                 if off(&first) > c.max_offset_mm {
                     return Err(bad_touch(format!(
