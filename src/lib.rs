@@ -28,5 +28,6 @@ pub mod protocols;
 pub mod recording;
 pub mod report;
 pub mod rig;
+pub mod session;
 pub mod transports;
 pub mod world;

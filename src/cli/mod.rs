@@ -8,8 +8,10 @@ mod evaluate;
 mod identify;
 mod import;
 mod observability;
+mod plan;
 mod register;
 mod rig_cmd;
+mod session;
 mod sim_device;
 mod simulate;
 
@@ -56,6 +58,11 @@ enum Command {
     Diagnose(diagnose::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
     Simulate(simulate::Args),
+    /// Plan a measurement session: points per region, checked and ordered, with a rig-time
+    /// estimate.
+    Plan(plan::Args),
+    /// Run (or resume) an automatic measurement session on the rig, or a dry run on emulators.
+    Session(session::Args),
     /// Serve one device's emulator on a pseudo-terminal (prints the port path).
     SimDevice(sim_device::Args),
 }
@@ -77,6 +84,8 @@ pub fn main() -> ExitCode {
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
+        Command::Plan(a) => plan::run(a),
+        Command::Session(a) => session::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

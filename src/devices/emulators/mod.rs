@@ -17,6 +17,7 @@ pub mod arm;
 pub mod panel;
 pub mod physics;
 pub mod table;
+pub mod world_physics;
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};

@@ -1,0 +1,137 @@
+//! `rigcal plan`: the measurement points of a session, in order, with a rig-time estimate.
+//!
+//! Infeasible candidates are dropped with their reason: a summary by reason is printed and every
+//! one is listed in `<out>.dropped.csv`. Files: degrees and mm.
+
+use crate::kinematics::Robot;
+use crate::rig::Rig;
+use crate::session::{
+    estimate, plan, write_plan, ContactSettings, Plan, PlanOptions, RigSpeeds, RigTimeEstimate,
+};
+use crate::world::Scenario;
+use anyhow::{Context, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Arguments of `rigcal plan`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The rig file.
+    #[arg(long)]
+    rig: PathBuf,
+    /// A scenario (sim/*.toml) whose seed to use.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Measurement points wanted (drift-reference re-measurements come on top).
+    #[arg(long)]
+    points: usize,
+    /// Regions of the workspace (rounded up to a power of two).
+    #[arg(long, default_value_t = 8)]
+    regions: usize,
+    /// Re-measure the drift-reference pose every N points (0: never).
+    #[arg(long, default_value_t = 50)]
+    reference_every: usize,
+    /// Seed of the random points (default: the scenario's, else 1).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Where to write the plan (CSV).
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// The plan options of a command line.
+pub(crate) fn options(
+    points: usize,
+    regions: usize,
+    reference_every: usize,
+    seed: u64,
+) -> PlanOptions {
+    PlanOptions {
+        points,
+        regions,
+        reference_every,
+        seed,
+        ..PlanOptions::default()
+    }
+}
+
+/// Prints the dropped candidates by reason and writes them all beside `out`.
+pub(crate) fn report_dropped(rig: &Rig, p: &Plan, out: &Path) -> Result<()> {
+    let mut by: BTreeMap<String, usize> = BTreeMap::new();
+    for d in &p.dropped {
+        let key = match &d.reason {
+            crate::rig::Unmeasurable::JointLimit { .. } => "joint limit".to_string(),
+            crate::rig::Unmeasurable::PinAngle { .. } => "pin angle to the panel".to_string(),
+            crate::rig::Unmeasurable::TableTravel { axis, .. } => format!("table {axis} travel"),
+        };
+        *by.entry(key).or_default() += 1;
+    }
+    let path = out.with_extension("dropped.csv");
+    let mut s = String::from("candidate");
+    for (i, j) in rig.chain.joints().iter().enumerate() {
+        s.push_str(&format!(",{}", j.kind.column(i + 1)));
+    }
+    s.push_str(",reason\n");
+    for (k, d) in p.dropped.iter().enumerate() {
+        s.push_str(&format!("{}", k + 1));
+        for (spec, v) in rig.chain.joints().iter().zip(&d.q) {
+            s.push_str(&format!(",{:.3}", spec.kind.to_file_units(*v)));
+        }
+        s.push_str(&format!(
+            ",\"{}\"\n",
+            d.reason.to_string().replace('"', "'")
+        ));
+    }
+    std::fs::write(&path, s).with_context(|| format!("writing {}", path.display()))?;
+    println!(
+        "dropped {} infeasible candidates (every one with its reason in {}):",
+        p.dropped.len(),
+        path.display()
+    );
+    for (reason, n) in by {
+        println!("  {n:>7}  {reason}");
+    }
+    Ok(())
+}
+
+/// One line on the estimate.
+pub(crate) fn describe(e: &RigTimeEstimate) -> String {
+    format!(
+        "estimated rig time {:.0} s ({:.2} h) for {} points: {:.0} s motion, {:.0} s contact; the paper's ~5 s per point would be {:.0} s",
+        e.total_s,
+        e.total_s / 3600.0,
+        e.points,
+        e.motion_s,
+        e.contact_s,
+        5.0 * e.points as f64
+    )
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let rig = Rig::load(&a.rig)?;
+    let seed = match (&a.seed, &a.scenario) {
+        (Some(s), _) => *s,
+        (None, Some(path)) => Scenario::load(path, None)?.seed,
+        (None, None) => 1,
+    };
+    let p = plan(&rig, &options(a.points, a.regions, a.reference_every, seed))?;
+    report_dropped(&rig, &p, &a.out)?;
+    write_plan(&a.out, &rig, &p.points)?;
+    let e = estimate(
+        &rig,
+        &p.points,
+        &RigSpeeds::of(&rig),
+        &ContactSettings::default(),
+    );
+    println!(
+        "planned {} points ({} drift references) → {}",
+        p.points.len(),
+        p.points
+            .iter()
+            .filter(|x| x.region == crate::session::plan::REFERENCE_REGION)
+            .count(),
+        a.out.display()
+    );
+    println!("{}", describe(&e));
+    Ok(())
+}

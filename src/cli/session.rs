@@ -1,0 +1,190 @@
+//! `rigcal session`: run an automatic measurement session on the rig, or a dry run through the
+//! same drivers against emulators of a scenario's world (`--sim`), and resume one (`--resume`).
+//!
+//! The plan is written to `<out>/plan.csv` at the start and read back from there on a resume.
+//! On the virtual clock (a dry run without `--real-time`) nothing waits: the report gives the
+//! rig time the session would have taken.
+
+use crate::devices::clock::RealClock;
+use crate::devices::{open_devices, Backend, SimSetup};
+use crate::kinematics::Robot;
+use crate::recording::SessionInfo;
+use crate::rig::Rig;
+use crate::session::{
+    estimate, plan, read_plan, run_session, write_plan, ContactSettings, Progress, RigSpeeds,
+    SessionOptions,
+};
+use crate::world::Scenario;
+use anyhow::{bail, Context, Result};
+use std::path::PathBuf;
+
+/// Arguments of `rigcal session`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The rig file.
+    #[arg(long)]
+    rig: PathBuf,
+    /// Dry run: emulate the devices on this scenario's truth (sim/*.toml).
+    #[arg(long)]
+    sim: Option<PathBuf>,
+    /// Session directory (measurements.csv, session.toml, journal.json, plan.csv).
+    #[arg(long)]
+    out: PathBuf,
+    /// Continue the session in --out from its journal.
+    #[arg(long)]
+    resume: bool,
+    /// A plan from `rigcal plan`.
+    #[arg(long, conflicts_with = "points")]
+    plan: Option<PathBuf>,
+    /// Plan this many points now.
+    #[arg(long)]
+    points: Option<usize>,
+    /// Regions of the workspace when planning here.
+    #[arg(long, default_value_t = 8)]
+    regions: usize,
+    /// Drift-reference interval when planning here (0: none).
+    #[arg(long, default_value_t = 50)]
+    reference_every: usize,
+    /// Poses of the registration step.
+    #[arg(long, default_value_t = 12)]
+    registration_points: usize,
+    /// Seed (plan and registration poses); default the scenario's, else 1.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Run the emulators on real time instead of the virtual clock.
+    #[arg(long)]
+    real_time: bool,
+    /// fsync every row and journal even on the virtual clock (always on with real devices).
+    #[arg(long)]
+    fsync: bool,
+}
+
+pub fn run(a: Args) -> Result<()> {
+    let rig = Rig::load(&a.rig)?;
+    let scenario = match &a.sim {
+        Some(p) => Some(Scenario::load(p, a.seed)?),
+        None => None,
+    };
+    if let Some(s) = &scenario {
+        if s.rig.name != rig.name || s.rig.instrument != rig.instrument {
+            bail!(
+                "scenario {} assumes rig `{}`, but --rig {} is `{}`",
+                s.path.display(),
+                s.rig.name,
+                a.rig.display(),
+                rig.name
+            );
+        }
+    }
+    let seed = a.seed.or(scenario.as_ref().map(|s| s.seed)).unwrap_or(1);
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let plan_path = a.out.join("plan.csv");
+    if !a.resume {
+        let points = match (&a.plan, a.points) {
+            (Some(p), None) => read_plan(p, &rig)?,
+            (None, Some(n)) => {
+                let p = plan(
+                    &rig,
+                    &super::plan::options(n, a.regions, a.reference_every, seed),
+                )?;
+                super::plan::report_dropped(&rig, &p, &plan_path)?;
+                p.points
+            }
+            _ => bail!("give --plan FILE or --points N (or --resume to continue a session)"),
+        };
+        if a.out.join(crate::session::run::CSV_FILE).exists() {
+            bail!(
+                "{} already holds a recording; resume it with --resume or choose another --out",
+                a.out.display()
+            );
+        }
+        write_plan(&plan_path, &rig, &points)?;
+    } else if a.plan.is_some() || a.points.is_some() {
+        eprintln!(
+            "note: --resume continues the plan in {}; --plan/--points are ignored",
+            plan_path.display()
+        );
+    }
+    // Both a fresh and a resumed run measure the plan as read back from the file.
+    let points = read_plan(&plan_path, &rig)
+        .with_context(|| format!("reading the session plan {}", plan_path.display()))?;
+    let est = estimate(
+        &rig,
+        &points,
+        &RigSpeeds::of(&rig),
+        &ContactSettings::default(),
+    );
+    println!("{}", super::plan::describe(&est));
+
+    let (backend, world) = match &scenario {
+        Some(s) => {
+            let (mut setup, world): (SimSetup, _) = SimSetup::from_scenario(s);
+            if a.real_time {
+                setup.clock = RealClock::shared();
+            }
+            (Backend::Simulated(setup), Some(world))
+        }
+        None => (Backend::RigFile, None),
+    };
+    let devices = open_devices(&rig, backend)?;
+    let virtual_clock = devices.clock.is_virtual();
+    let mut opts = SessionOptions::new(&a.out);
+    opts.resume = a.resume;
+    opts.registration_points = a.registration_points;
+    opts.seed = seed;
+    opts.fsync = a.fsync || !virtual_clock;
+    opts.info = SessionInfo {
+        rig: Some(a.rig.display().to_string()),
+        scenario: a.sim.as_ref().map(|p| p.display().to_string()),
+        seed: scenario.as_ref().map(|s| s.seed),
+        notes: Some(format!(
+            "rigcal session: {} points{}",
+            points.len(),
+            if virtual_clock {
+                ", dry run on the virtual clock"
+            } else {
+                ""
+            }
+        )),
+        ..Default::default()
+    };
+    let progress = Progress::auto(points.len());
+    let report = run_session(&rig, devices, world, &points, opts, &progress)?;
+    let joints = rig.chain.joints().len();
+    let _ = joints;
+    println!(
+        "session {}: {} points, {} measured{}, {} skipped, {} via rows, {} retries, {} faults cleared",
+        a.out.display(),
+        report.points,
+        report.ok,
+        match report.resumed_at {
+            Some(k) => format!(" (this run, resumed at point {})", k + 1),
+            None => String::new(),
+        },
+        report.skipped.len(),
+        report.via,
+        report.retries,
+        report.faults_cleared.len()
+    );
+    for (p, why) in &report.skipped {
+        println!("  point {p} skipped: {why}");
+    }
+    for f in &report.faults_cleared {
+        println!("  cleared: {f}");
+    }
+    if let Some(rms) = report.registration_rms_mm {
+        println!("registration RMS {rms:.3} mm (written to session.toml)");
+    }
+    println!(
+        "rig time {:.0} s ({:.2} h){}; wall time {:.2} s",
+        report.rig_time_s,
+        report.rig_time_s / 3600.0,
+        if virtual_clock {
+            " on the virtual clock: what the rig would have taken"
+        } else {
+            ""
+        },
+        report.wall.as_secs_f64()
+    );
+    Ok(())
+}

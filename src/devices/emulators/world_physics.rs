@@ -1,0 +1,122 @@
+//! [`RigPhysics`] on a scenario's full truth: the emulators run on a [`World`] (geometry,
+//! joint-space effects, drift, the table's true map) instead of the nominal arm.
+//!
+//! Each arm command becomes [`World::move_arm`] at the command's arrival time (so the motion
+//! history sees every move, as on the rig), scattered by the arm's repeatability with the draws
+//! of the measurement the session is about to take ([`WorldPhysics::set_draws`]): draws are a
+//! function of (seed, seq, attempt) only (conventions §7). Times: the emulators' clock plus a
+//! session time offset ([`WorldPhysics::set_time_offset`]), so a resumed session continues the
+//! world's time where the journal left it.
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use nalgebra::Vector3;
+
+use crate::devices::clock::VirtualClock;
+use crate::devices::emulators::physics::{PinState, RigPhysics, SharedPhysics};
+use crate::devices::factory::SimSetup;
+use crate::rig::Instrument;
+use crate::world::{MotionHistory, Scenario, World};
+
+/// A [`World`] as the emulators' physics.
+#[derive(Debug, Clone)]
+pub struct WorldPhysics {
+    world: World,
+    pin_axis: Vector3<f64>,
+    /// (pin before the last command, pin after it, arrival time of the last command)
+    pins: Option<(PinState, PinState, Duration)>,
+    seq: u64,
+    attempt: u32,
+    time_offset_s: f64,
+}
+
+/// A shared handle to a [`WorldPhysics`] (coerces to [`SharedPhysics`]).
+pub type SharedWorld = Arc<Mutex<WorldPhysics>>;
+
+impl WorldPhysics {
+    /// Wraps a world (usually [`Scenario::world`]).
+    pub fn new(world: World) -> Self {
+        let pin_axis = match world.instrument() {
+            Instrument::TablePanel(tp) => tp.pin_axis,
+            _ => Vector3::x(),
+        };
+        WorldPhysics {
+            world,
+            pin_axis,
+            pins: None,
+            seq: 0,
+            attempt: 0,
+            time_offset_s: 0.0,
+        }
+    }
+
+    /// The world.
+    pub fn world(&self) -> &World {
+        &self.world
+    }
+
+    /// The draws the next arm command's repeatability scatter uses: measurement `seq`, attempt
+    /// `attempt`.
+    pub fn set_draws(&mut self, seq: u64, attempt: u32) {
+        self.seq = seq;
+        self.attempt = attempt;
+    }
+
+    /// World time (s) = emulator clock (s) + `offset_s`.
+    pub fn set_time_offset(&mut self, offset_s: f64) {
+        self.time_offset_s = offset_s;
+    }
+
+    /// The world's motion history (for a session journal).
+    pub fn snapshot(&self) -> MotionHistory {
+        self.world.snapshot()
+    }
+
+    /// Continues from a stored motion history.
+    pub fn restore(&mut self, history: MotionHistory) {
+        self.world.restore(history);
+    }
+
+    /// As a shared handle.
+    pub fn shared(self) -> SharedWorld {
+        Arc::new(Mutex::new(self))
+    }
+}
+
+impl RigPhysics for WorldPhysics {
+    fn arm_commanded(&mut self, q: &[f64], t_arrive: Duration) {
+        let t_s = (t_arrive.as_secs_f64() + self.time_offset_s).max(0.0);
+        let arm = self.world.move_arm(q, t_s);
+        let draws = self.world.draws(self.seq, self.attempt);
+        let pin = PinState {
+            tip_mm: self.world.scattered_tip(&arm, &draws),
+            direction: arm.tool.rotation * self.pin_axis,
+        };
+        let before = self.pins.map_or(pin, |(_, after, _)| after);
+        self.pins = Some((before, pin, t_arrive));
+    }
+
+    fn pin(&self, t: Duration) -> Option<PinState> {
+        let (before, after, arrive) = self.pins?;
+        Some(if t >= arrive { after } else { before })
+    }
+
+    fn panel_centre_world(&self, table_mm: Vector3<f64>) -> Vector3<f64> {
+        self.world.panel_centre(&table_mm).unwrap_or(table_mm)
+    }
+}
+
+impl SimSetup {
+    /// A simulated rig running on `scenario`'s truth on a virtual clock, the table centred in x
+    /// and y at the bottom of z. Returns the setup and the world handle (draws, time base,
+    /// motion history).
+    pub fn from_scenario(scenario: &Scenario) -> (SimSetup, SharedWorld) {
+        let world = WorldPhysics::new(scenario.world()).shared();
+        let mut setup = SimSetup::nominal(&scenario.rig);
+        let physics: SharedPhysics = world.clone();
+        setup.physics = physics;
+        setup.clock = Arc::new(VirtualClock::new());
+        (setup, world)
+    }
+}

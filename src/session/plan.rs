@@ -1,0 +1,580 @@
+//! Planning a measurement session: which poses, in which order, and how long the rig will take.
+//!
+//! - Points are drawn at random within the joint limits (held joints at their values, seeded),
+//!   each checked with [`Rig::measurable`]; an infeasible point is dropped and kept in
+//!   [`Plan::dropped`] with its reason (the CLI prints them, never silently).
+//! - Regions: the joint space of the first three moving joints split into boxes by the division
+//!   rule (halve the widest dimension, conventions §5); each point belongs to one box.
+//! - Order within a region: ascending table z in layers of [`PlanOptions::layer_mm`] (thin enough
+//!   that the table's ascending-z rule, `pass_retract_mm`, holds between consecutive approaches
+//!   with the approach margin and the travel clearance of [`ContactSettings`]),
+//!   nearest neighbour in x-y within a layer. Regions are visited in a seeded random order so
+//!   that time is decorrelated from position, and a drift-reference pose (region `ref`) is
+//!   measured first and then every [`PlanOptions::reference_every`] points.
+//! - Approach directions: each moving joint reaches its target from alternating sides
+//!   ([`approach_signs`]), so backlash is seen from both directions.
+//!
+//! Units: radians inside, degrees in `plan.csv`; table positions in mm (table frame, the panel
+//! centre under the nominal tip at contact height).
+
+use std::path::{Path, PathBuf};
+
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::devices::emulators::Profile;
+use crate::division::{Bounds, DivisionSpace, Space};
+use crate::identification::random_poses;
+use crate::kinematics::{ErrorParams, Robot};
+use crate::rig::{Instrument, Rig, Unmeasurable};
+
+/// The region id of the drift-reference pose.
+pub const REFERENCE_REGION: &str = "ref";
+
+/// What went wrong planning or reading a plan.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum PlanError {
+    /// The rig has no table-and-panel instrument.
+    #[error("the rig's instrument is not kind = \"table_panel\"; sessions plan table positions")]
+    NotTablePanel,
+    /// Too few measurable points were found.
+    #[error("found only {found} measurable points of {wanted} after {drawn} random poses; lower --points or use a rig with a larger measurable workspace")]
+    TooFewPoints {
+        /// Found.
+        found: usize,
+        /// Wanted.
+        wanted: usize,
+        /// Candidates drawn.
+        drawn: usize,
+    },
+    /// The division space could not be set up.
+    #[error("cannot divide the workspace into regions: {0}")]
+    Space(String),
+    /// A plan file could not be read or written.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A plan file is malformed.
+    #[error("{path}: line {line}: {reason}; expected columns point,region,q1_deg..qN_deg,table_x_mm,table_y_mm,table_z_mm")]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What is wrong.
+        reason: String,
+    },
+}
+
+/// How to plan.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlanOptions {
+    /// Measurement points wanted (reference re-measurements not included).
+    pub points: usize,
+    /// Number of regions (rounded up to a power of two).
+    pub regions: usize,
+    /// Re-measure the drift reference every this many points (0: never).
+    pub reference_every: usize,
+    /// Seed of the random draws.
+    pub seed: u64,
+    /// Height of a z layer within a region (mm).
+    pub layer_mm: f64,
+    /// Order within a layer.
+    pub order: Ordering,
+    /// Room the contact needs below and above the nominal contact height in the table's z
+    /// travel (approach margin + travel clearance, mm); points with less are dropped.
+    pub z_room_mm: f64,
+}
+
+impl Default for PlanOptions {
+    fn default() -> Self {
+        PlanOptions {
+            points: 100,
+            regions: 8,
+            reference_every: 50,
+            seed: 1,
+            layer_mm: 2.0,
+            order: Ordering::NearestNeighbour,
+            z_room_mm: 5.0,
+        }
+    }
+}
+
+/// Order of the points within a z layer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ordering {
+    /// Nearest neighbour in x-y (the default).
+    NearestNeighbour,
+    /// The paper's order: z, then x, then y.
+    ZThenXY,
+}
+
+/// One planned measurement.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PlannedPoint {
+    /// Point number, 1-based, in measurement order.
+    pub point: usize,
+    /// Region id (`r1`…, or `ref`).
+    pub region: String,
+    /// Joint values (rad).
+    pub q: Vec<f64>,
+    /// Table position at nominal contact (mm, table frame).
+    pub table_mm: [f64; 3],
+}
+
+/// A pose dropped while planning, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Dropped {
+    /// Joint values (rad).
+    pub q: Vec<f64>,
+    /// Why it cannot be measured.
+    pub reason: Unmeasurable,
+}
+
+/// A session plan.
+#[derive(Debug, Clone)]
+pub struct Plan {
+    /// Points in measurement order.
+    pub points: Vec<PlannedPoint>,
+    /// Candidates dropped as unmeasurable.
+    pub dropped: Vec<Dropped>,
+}
+
+/// The table position (mm) that brings the panel centre under the nominal tip at contact.
+pub fn table_target(rig: &Rig, q: &[f64]) -> Option<[f64; 3]> {
+    let Instrument::TablePanel(tp) = &rig.instrument else {
+        return None;
+    };
+    let tip = rig
+        .chain
+        .position(q, &ErrorParams::zeros(rig.chain.layout()));
+    let t = tip - tp.table_to_world_mm;
+    Some([t.x, t.y, t.z])
+}
+
+/// Joint-space region boxes (the division rule applied until there are `n`).
+fn region_boxes(space: &DivisionSpace, n: usize) -> Vec<Bounds> {
+    let mut boxes = vec![space.full];
+    while boxes.len() < n.max(1) {
+        let mut next = Vec::with_capacity(boxes.len() * 2);
+        for b in &boxes {
+            let (lo, hi) = b.halves(b.widest(&space.full));
+            next.push(lo);
+            next.push(hi);
+        }
+        boxes = next;
+    }
+    boxes
+}
+
+/// Plans a session on `rig`.
+pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
+    if !matches!(rig.instrument, Instrument::TablePanel(_)) {
+        return Err(PlanError::NotTablePanel);
+    }
+    let space =
+        DivisionSpace::new(rig, Space::Joint).map_err(|e| PlanError::Space(e.to_string()))?;
+    let boxes = region_boxes(&space, opts.regions);
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x706c_616e);
+    let mut dropped = Vec::new();
+    let mut found: Vec<(usize, Vec<f64>, [f64; 3])> = Vec::new();
+    let max_draws = opts.points.max(1) * 200;
+    let mut drawn = 0;
+    while found.len() < opts.points && drawn < max_draws {
+        let q = random_poses(rig.chain.joints(), rig.held(), 1, &mut rng)
+            .pop()
+            .unwrap_or_default();
+        drawn += 1;
+        match rig.measurable(&q) {
+            Err(reason) => dropped.push(Dropped { q, reason }),
+            Ok(()) => {
+                let t = table_target(rig, &q).ok_or(PlanError::NotTablePanel)?;
+                let travel_z = match &rig.instrument {
+                    Instrument::TablePanel(tp) => tp.travel_mm.z,
+                    _ => f64::MAX,
+                };
+                if t[2] < opts.z_room_mm || t[2] > travel_z - opts.z_room_mm {
+                    // The approach starts below the contact and ends above it: that room must
+                    // lie within the travel, or the pin is already on the panel at the start.
+                    dropped.push(Dropped {
+                        q,
+                        reason: Unmeasurable::TableTravel {
+                            axis: 'z',
+                            position_mm: t[2],
+                            travel_mm: travel_z,
+                        },
+                    });
+                    continue;
+                }
+                let c = space.coords(&q);
+                let region = boxes
+                    .iter()
+                    .position(|b| b.contains(&c, &space.full))
+                    .unwrap_or(0);
+                found.push((region, q, t));
+            }
+        }
+    }
+    if found.len() < opts.points {
+        return Err(PlanError::TooFewPoints {
+            found: found.len(),
+            wanted: opts.points,
+            drawn,
+        });
+    }
+    // The reference: the point nearest the middle of the table's travel.
+    let reference = match &rig.instrument {
+        Instrument::TablePanel(tp) => found
+            .iter()
+            .min_by(|a, b| {
+                let d = |t: &[f64; 3]| {
+                    (0..3)
+                        .map(|k| (t[k] - tp.travel_mm[k] / 2.0).powi(2))
+                        .sum::<f64>()
+                };
+                d(&a.2).total_cmp(&d(&b.2))
+            })
+            .map(|(_, q, t)| (q.clone(), *t)),
+        _ => None,
+    };
+    let mut order: Vec<usize> = (0..boxes.len()).collect();
+    order.shuffle(&mut rng);
+    let mut points: Vec<PlannedPoint> = Vec::with_capacity(found.len() + 8);
+    let push = |region: String, q: Vec<f64>, t: [f64; 3], points: &mut Vec<PlannedPoint>| {
+        points.push(PlannedPoint {
+            point: points.len() + 1,
+            region,
+            q,
+            table_mm: t,
+        });
+    };
+    let mut since_ref = 0usize;
+    if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
+        push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
+    }
+    for r in order {
+        let mine: Vec<(Vec<f64>, [f64; 3])> = found
+            .iter()
+            .filter(|(reg, _, _)| *reg == r)
+            .map(|(_, q, t)| (q.clone(), *t))
+            .collect();
+        for (q, t) in order_region(mine, opts.layer_mm, opts.order) {
+            if opts.reference_every > 0 && since_ref == opts.reference_every {
+                if let Some((rq, rt)) = &reference {
+                    push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
+                }
+                since_ref = 0;
+            }
+            push(format!("r{}", r + 1), q, t, &mut points);
+            since_ref += 1;
+        }
+    }
+    Ok(Plan { points, dropped })
+}
+
+/// Orders one region's points: ascending z layers, then x-y within a layer.
+pub fn order_region(
+    mut pts: Vec<(Vec<f64>, [f64; 3])>,
+    layer_mm: f64,
+    order: Ordering,
+) -> Vec<(Vec<f64>, [f64; 3])> {
+    pts.sort_by(|a, b| a.1[2].total_cmp(&b.1[2]));
+    let layer_mm = if layer_mm > 0.0 { layer_mm } else { f64::MAX };
+    let z0 = pts.first().map_or(0.0, |p| p.1[2]);
+    let layer = |p: &[f64; 3]| ((p[2] - z0) / layer_mm).floor() as i64;
+    let mut out = Vec::with_capacity(pts.len());
+    let mut at: Option<[f64; 2]> = None;
+    let mut i = 0;
+    while i < pts.len() {
+        let l = layer(&pts[i].1);
+        let mut j = i;
+        while j < pts.len() && layer(&pts[j].1) == l {
+            j += 1;
+        }
+        let mut group: Vec<(Vec<f64>, [f64; 3])> = pts[i..j].to_vec();
+        match order {
+            Ordering::ZThenXY => {
+                group.sort_by(|a, b| a.1[0].total_cmp(&b.1[0]).then(a.1[1].total_cmp(&b.1[1])));
+                out.extend(group);
+            }
+            Ordering::NearestNeighbour => {
+                while !group.is_empty() {
+                    let from = at.unwrap_or([group[0].1[0], group[0].1[1]]);
+                    let k = (0..group.len())
+                        .min_by(|&a, &b| {
+                            let d = |p: &[f64; 3]| (p[0] - from[0]).hypot(p[1] - from[1]);
+                            d(&group[a].1).total_cmp(&d(&group[b].1))
+                        })
+                        .unwrap_or(0);
+                    let p = group.swap_remove(k);
+                    at = Some([p.1[0], p.1[1]]);
+                    out.push(p);
+                }
+            }
+        }
+        if let Some(p) = out.last() {
+            at = Some([p.1[0], p.1[1]]);
+        }
+        i = j;
+    }
+    out
+}
+
+/// The side each joint approaches point `point` from: +1 (moving up to it) or −1, alternating
+/// per point for the first moving joint, every second point for the next, and so on; 0 for a
+/// held joint.
+pub fn approach_signs(rig: &Rig, point: usize) -> Vec<i8> {
+    let held = rig.held();
+    let mut k = 0;
+    (0..rig.chain.joints().len())
+        .map(|j| {
+            if held.get(j).copied().flatten().is_some() {
+                0
+            } else {
+                let s = if (point >> k) & 1 == 1 { 1 } else { -1 };
+                k += 1;
+                s
+            }
+        })
+        .collect()
+}
+
+/// The pre-approach (via) pose for `q`: each moving joint `delta` (rad) on the side opposite to
+/// its approach sign, flipped where that would leave the joint limits.
+pub fn via_pose(rig: &Rig, q: &[f64], signs: &[i8], delta: f64) -> Vec<f64> {
+    q.iter()
+        .zip(rig.chain.joints())
+        .zip(signs)
+        .map(|((&v, spec), &s)| {
+            if s == 0 {
+                return v;
+            }
+            let a = v - f64::from(s) * delta;
+            if spec.within(a) {
+                a
+            } else {
+                v + f64::from(s) * delta
+            }
+        })
+        .collect()
+}
+
+/// How the contact is made; the session and the time estimate share it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactSettings {
+    /// The approach starts this far below the nominal contact and ends as far above (mm).
+    pub margin_mm: f64,
+    /// Speed of the first, locating approach (mm/s).
+    pub fast_mm_s: f64,
+    /// How far the table backs off below the located contact before the final approach (mm).
+    pub backoff_mm: f64,
+    /// Joint offset of the pre-approach (via) pose (rad).
+    pub via_delta: f64,
+    /// Before travelling in x-y the table drops this far below both the current and the next
+    /// approach height, so the panel does not sweep into the pin (mm).
+    pub clearance_mm: f64,
+    /// A touch farther than this from the panel centre is rejected as a bad reading and the
+    /// contact repeated (mm; the table stands under the nominal tip).
+    pub max_offset_mm: f64,
+}
+
+impl Default for ContactSettings {
+    fn default() -> Self {
+        ContactSettings {
+            margin_mm: 2.5,
+            fast_mm_s: 5.0,
+            backoff_mm: 0.3,
+            via_delta: 0.5f64.to_radians(),
+            clearance_mm: 2.0,
+            max_offset_mm: 10.0,
+        }
+    }
+}
+
+/// The device speeds the rig-time estimate uses (from the rig file's `[devices]`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RigSpeeds {
+    /// Arm joint speed at the session's speed level (deg/s).
+    pub arm_deg_s: f64,
+    /// Table profile velocity (mm/s).
+    pub table_mm_s: f64,
+    /// Table acceleration (mm/s²).
+    pub table_acc: f64,
+    /// Table deceleration (mm/s²).
+    pub table_dec: f64,
+    /// Final approach speed (mm/s), from the latency rule.
+    pub approach_mm_s: f64,
+    /// Per-point overhead of serial and CAN exchanges (s).
+    pub overhead_s: f64,
+}
+
+impl RigSpeeds {
+    /// From the rig file's device settings.
+    pub fn of(rig: &Rig) -> RigSpeeds {
+        let cfg = rig.devices.clone().unwrap_or_default();
+        let lat = std::time::Duration::from_secs_f64(
+            (cfg.panel.latency_ms + cfg.table.bus_latency_ms).max(0.0) / 1000.0,
+        );
+        RigSpeeds {
+            arm_deg_s: cfg.arm.sim_joint_speed_deg_s * f64::from(cfg.arm.speed + 1) / 10.0,
+            table_mm_s: cfg.table.profile_velocity_mm_s,
+            table_acc: cfg.table.profile_acceleration_mm_s2,
+            table_dec: cfg.table.profile_deceleration_mm_s2,
+            approach_mm_s: crate::devices::contact::approach_speed(
+                lat,
+                std::time::Duration::ZERO,
+                cfg.panel.max_overshoot_mm,
+            ),
+            overhead_s: 0.3,
+        }
+    }
+}
+
+/// A rig-time estimate.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct RigTimeEstimate {
+    /// Total (s).
+    pub total_s: f64,
+    /// Of which arm/table motion between points (s).
+    pub motion_s: f64,
+    /// Of which contact approaches (s).
+    pub contact_s: f64,
+    /// Points.
+    pub points: usize,
+}
+
+/// Estimates the rig time of `points` from the device speeds: per point, the slower of the arm
+/// (via then target, largest joint change) and the table (trapezoidal profile per axis), then
+/// the two-stage contact, plus the overhead.
+pub fn estimate(
+    rig: &Rig,
+    points: &[PlannedPoint],
+    speeds: &RigSpeeds,
+    contact: &ContactSettings,
+) -> RigTimeEstimate {
+    let mut q_at: Option<Vec<f64>> = None;
+    let mut t_at: Option<[f64; 3]> = None;
+    let mut est = RigTimeEstimate {
+        points: points.len(),
+        ..Default::default()
+    };
+    for p in points {
+        let signs = approach_signs(rig, p.point);
+        let via = via_pose(rig, &p.q, &signs, contact.via_delta);
+        let big = |a: &[f64], b: &[f64]| {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| (x - y).abs().to_degrees())
+                .fold(0.0, f64::max)
+        };
+        let arm_s = (q_at.as_deref().map_or(0.0, |q| big(q, &via)) + big(&via, &p.q))
+            / speeds.arm_deg_s.max(1e-9);
+        let start = [
+            p.table_mm[0],
+            p.table_mm[1],
+            p.table_mm[2] - contact.margin_mm,
+        ];
+        let table_s = t_at.map_or(0.0, |from| {
+            (0..3)
+                .map(|k| {
+                    Profile::new(
+                        std::time::Duration::ZERO,
+                        from[k],
+                        start[k],
+                        speeds.table_mm_s,
+                        speeds.table_acc,
+                        speeds.table_dec,
+                    )
+                    .duration_s()
+                })
+                .fold(0.0, f64::max)
+        });
+        let contact_s = contact.margin_mm / contact.fast_mm_s
+            + contact.backoff_mm / speeds.table_mm_s.max(1e-9)
+            + contact.backoff_mm / speeds.approach_mm_s.max(1e-9);
+        est.motion_s += arm_s.max(table_s);
+        est.contact_s += contact_s + speeds.overhead_s;
+        q_at = Some(p.q.clone());
+        t_at = Some(p.table_mm);
+    }
+    est.total_s = est.motion_s + est.contact_s;
+    est
+}
+
+/// Writes `plan.csv`: `point,region,q1_deg..qN_deg,table_x_mm,table_y_mm,table_z_mm`.
+pub fn write_plan(path: &Path, rig: &Rig, points: &[PlannedPoint]) -> Result<(), PlanError> {
+    use std::fmt::Write;
+    let joints = rig.chain.joints();
+    let mut s = String::from("point,region");
+    for (i, j) in joints.iter().enumerate() {
+        let _ = write!(s, ",{}", j.kind.column(i + 1));
+    }
+    s.push_str(",table_x_mm,table_y_mm,table_z_mm\n");
+    for p in points {
+        let _ = write!(s, "{},{}", p.point, p.region);
+        for (spec, v) in joints.iter().zip(&p.q) {
+            let _ = write!(s, ",{}", spec.kind.to_file_units(*v));
+        }
+        let _ = writeln!(s, ",{},{},{}", p.table_mm[0], p.table_mm[1], p.table_mm[2]);
+    }
+    std::fs::write(path, s).map_err(|source| PlanError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// Reads a `plan.csv` written by [`write_plan`] (or by hand, same columns).
+pub fn read_plan(path: &Path, rig: &Rig) -> Result<Vec<PlannedPoint>, PlanError> {
+    let text = std::fs::read_to_string(path).map_err(|source| PlanError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let joints = rig.chain.joints();
+    let n = 2 + joints.len() + 3;
+    let bad = |line: usize, reason: String| PlanError::Malformed {
+        path: path.to_path_buf(),
+        line,
+        reason,
+    };
+    let mut out = Vec::new();
+    for (i, l) in text.lines().enumerate().skip(1) {
+        if l.trim().is_empty() {
+            continue;
+        }
+        let f: Vec<&str> = l.split(',').map(str::trim).collect();
+        if f.len() != n {
+            return Err(bad(i + 1, format!("{} fields, expected {n}", f.len())));
+        }
+        let num = |k: usize| -> Result<f64, PlanError> {
+            f[k].parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .ok_or_else(|| {
+                    bad(
+                        i + 1,
+                        format!("field {} (`{}`) is not a number", k + 1, f[k]),
+                    )
+                })
+        };
+        let point = f[0]
+            .parse::<usize>()
+            .map_err(|_| bad(i + 1, format!("point `{}` is not a whole number", f[0])))?;
+        let q = (0..joints.len())
+            .map(|j| num(2 + j).map(|v| joints[j].kind.from_file_units(v)))
+            .collect::<Result<Vec<_>, _>>()?;
+        let t = [num(n - 3)?, num(n - 2)?, num(n - 1)?];
+        out.push(PlannedPoint {
+            point,
+            region: f[1].to_string(),
+            q,
+            table_mm: t,
+        });
+    }
+    Ok(out)
+}
