@@ -636,11 +636,16 @@ impl Runner<'_> {
         let start = [nominal[0], nominal[1], (nominal[2] - c.margin_mm).max(0.0)];
         let end_z = (nominal[2] + c.margin_mm).min(zmax);
         self.pass(region);
-        // 1. Via pose, the table to the approach start.
+        // 1. Via pose, the table to the approach start — or lower, when the via pose (a small
+        // joint offset away, to set the approach directions) brings the pin below the approach
+        // start: the panel must never sit above the pin while the arm moves onto the target.
+        let via_z = crate::session::plan::table_target(self.rig, &via)
+            .map_or(start[2], |t| t[2] - c.margin_mm);
+        let via_start = [start[0], start[1], start[2].min(via_z).max(0.0)];
         let mut attempt = 0u32;
         loop {
             self.set_draws(self.seq, attempt);
-            match self.travel(&via, start) {
+            match self.travel(&via, via_start) {
                 Ok(done) => {
                     let m = self.row(done, region, Status::Via);
                     self.write(m)?;

@@ -160,17 +160,23 @@ impl PanelEmulator {
 
     fn advance(&mut self, now: Duration) {
         while self.checked_until < now {
-            // Periodic reports while touching.
-            if let (Some(c), Some(next)) = (self.contact, self.next_report) {
-                if next <= now {
-                    self.packet(next, true, c);
-                    self.next_report = Some(next + self.period());
-                    continue;
-                }
-            }
+            // While touching, look for the end of the contact only up to the next periodic
+            // report: a report must never be sent for a moment after the contact ended.
             let touching = self.contact.is_some();
-            match self.find_change(self.checked_until, now, touching) {
-                None => self.checked_until = now,
+            let horizon = match (touching, self.next_report) {
+                (true, Some(next)) => next.min(now),
+                _ => now,
+            };
+            match self.find_change(self.checked_until, horizon, touching) {
+                None => {
+                    self.checked_until = horizon;
+                    if let (Some(c), Some(next)) = (self.contact, self.next_report) {
+                        if next <= horizon {
+                            self.packet(next, true, c);
+                            self.next_report = Some(next + self.period());
+                        }
+                    }
+                }
                 Some(t) => {
                     self.checked_until = t;
                     let lat = self.latency();
