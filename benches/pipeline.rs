@@ -23,18 +23,23 @@ fn setup() -> (Rig, World, Vec<usize>) {
     (rig, world, ident.basis)
 }
 
-fn identification(c: &mut Criterion) {
-    let (rig, world, basis) = setup();
-    let mut rng = ChaCha8Rng::seed_from_u64(2);
-    let poses = random_poses(rig.chain.joints(), rig.held(), 2200, &mut rng);
-    let obs: Vec<Observation> = poses
+/// The world's measurements at `poses`, numbered from 0.
+fn observe(world: &World, poses: &[Vec<f64>]) -> Vec<Observation> {
+    poses
         .iter()
         .enumerate()
         .map(|(k, q)| Observation {
             q: q.clone(),
             p: world.measure(q, k as u64, 0),
         })
-        .collect();
+        .collect()
+}
+
+fn identification(c: &mut Criterion) {
+    let (rig, world, basis) = setup();
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let poses = random_poses(rig.chain.joints(), rig.held(), 2200, &mut rng);
+    let obs = observe(&world, &poses);
     let zero = ErrorParams::zeros(rig.chain.layout());
     let mut g = c.benchmark_group("identification");
     g.sample_size(20);
@@ -48,14 +53,7 @@ fn compensation(c: &mut Criterion) {
     let (rig, world, basis) = setup();
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let poses = random_poses(rig.chain.joints(), rig.held(), 200, &mut rng);
-    let obs: Vec<Observation> = poses
-        .iter()
-        .enumerate()
-        .map(|(k, q)| Observation {
-            q: q.clone(),
-            p: world.measure(q, k as u64, 0),
-        })
-        .collect();
+    let obs = observe(&world, &poses);
     let zero = ErrorParams::zeros(rig.chain.layout());
     let model = fit(&rig.chain, &obs, &zero, &basis, &FitOptions::default())
         .expect("fit")

@@ -265,7 +265,8 @@ pub fn write_session(dir: &Path, info: &SessionInfo) -> Result<(), RecordingErro
     std::fs::write(&path, text).map_err(|source| RecordingError::Io { path, source })
 }
 
-const OPTIONAL: [&str; 10] = [
+/// The optional columns, in the order they are written after `x_mm, y_mm, z_mm`.
+const OPTIONAL: [&str; 9] = [
     "region",
     "table_x_mm",
     "table_y_mm",
@@ -275,7 +276,6 @@ const OPTIONAL: [&str; 10] = [
     "temp_c",
     "load_kg",
     "status",
-    "t_s",
 ];
 
 struct Columns {
@@ -344,6 +344,7 @@ fn read_csv<R: std::io::Read>(
             .filter(|&i| {
                 let h = headers[i].as_str();
                 !(h == "seq"
+                    || h == "t_s"
                     || ["x_mm", "y_mm", "z_mm"].contains(&h)
                     || OPTIONAL.contains(&h)
                     || joint_cols.iter().any(|c| c == h))
@@ -641,22 +642,8 @@ impl RecordingWriter {
 pub fn header(joints: &[JointSpec], extra: &[String]) -> String {
     let mut cols: Vec<String> = vec!["seq".into(), "t_s".into()];
     cols.extend(joints.iter().enumerate().map(|(i, j)| j.kind.column(i + 1)));
-    for c in [
-        "x_mm",
-        "y_mm",
-        "z_mm",
-        "region",
-        "table_x_mm",
-        "table_y_mm",
-        "table_z_mm",
-        "panel_u_mm",
-        "panel_v_mm",
-        "temp_c",
-        "load_kg",
-        "status",
-    ] {
-        cols.push(c.into());
-    }
+    cols.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
+    cols.extend(OPTIONAL.map(String::from));
     cols.extend(extra.iter().map(|c| csv_field(c)));
     cols.join(",")
 }

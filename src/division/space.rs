@@ -2,7 +2,7 @@
 //! joint); spherical coordinates R in mm, azimuth and elevation in rad.
 
 use crate::kinematics::{
-    solve_position_ik, ErrorParams, IkOptions, Robot, Spherical, SphericalFrame,
+    solve_position_ik, ErrorParams, IkOptions, Robot, SerialChain, Spherical, SphericalFrame,
 };
 use crate::rig::Rig;
 use rand::Rng;
@@ -59,13 +59,6 @@ impl Bounds {
         (a, b)
     }
 
-    /// Fraction of the full volume.
-    pub fn volume_fraction(&self, full: &Bounds) -> f64 {
-        (0..3)
-            .map(|k| (self.hi[k] - self.lo[k]) / (full.hi[k] - full.lo[k]))
-            .product()
-    }
-
     /// Smallest width as a fraction of the full range.
     pub fn min_fraction(&self, full: &Bounds) -> f64 {
         (0..3)
@@ -93,6 +86,10 @@ pub struct DivisionSpace {
     major: [usize; 3],
     spherical: SphericalFrame,
     rig: Rig,
+    /// The chain in world coordinates (measurement frame left out), built once: coordinates
+    /// are asked for on every compensation and learner query.
+    world: SerialChain,
+    nominal: ErrorParams,
 }
 
 /// Why a division space cannot be set up for a rig.
@@ -142,12 +139,16 @@ impl DivisionSpace {
                 ([0, 1, 2], full)
             }
         };
+        let world = rig.chain.with_frame(nalgebra::Isometry3::identity());
+        let nominal = ErrorParams::zeros(world.layout());
         Ok(Self {
             space,
             full,
             major,
             spherical,
             rig: rig.clone(),
+            world,
+            nominal,
         })
     }
 
@@ -156,11 +157,7 @@ impl DivisionSpace {
         match self.space {
             Space::Joint => self.major.map(|m| q[m]),
             Space::Cartesian => {
-                let p = self
-                    .rig
-                    .chain
-                    .with_frame(nalgebra::Isometry3::identity())
-                    .position(q, &ErrorParams::zeros(self.rig.chain.layout()));
+                let p = self.world.position(q, &self.nominal);
                 let s = self.spherical.to_spherical(&p);
                 [s.r, s.azimuth, s.elevation]
             }
@@ -196,19 +193,11 @@ impl DivisionSpace {
                         azimuth: x[1],
                         elevation: x[2],
                     });
-                    let world = self.rig.chain.with_frame(nalgebra::Isometry3::identity());
                     let opts = IkOptions {
                         max_starts: 8,
                         ..IkOptions::default()
                     };
-                    match solve_position_ik(
-                        &world,
-                        &ErrorParams::zeros(world.layout()),
-                        &p,
-                        held,
-                        None,
-                        &opts,
-                    ) {
+                    match solve_position_ik(&self.world, &self.nominal, &p, held, None, &opts) {
                         Ok(q) => q,
                         Err(_) => continue,
                     }
@@ -219,29 +208,6 @@ impl DivisionSpace {
             }
         }
         None
-    }
-
-    /// Names of the three coordinates, with units, for reports.
-    pub fn axis_names(&self) -> [String; 3] {
-        match self.space {
-            Space::Joint => self
-                .major
-                .map(|m| format!("q{} ({})", m + 1, self.rig.chain.joints()[m].kind.unit())),
-            Space::Cartesian => [
-                "R (mm)".into(),
-                "azimuth (deg)".into(),
-                "elevation (deg)".into(),
-            ],
-        }
-    }
-
-    /// A coordinate in file units (deg for angles).
-    pub fn to_file_units(&self, k: usize, v: f64) -> f64 {
-        match self.space {
-            Space::Joint => self.rig.chain.joints()[self.major[k]].kind.to_file_units(v),
-            Space::Cartesian if k == 0 => v,
-            Space::Cartesian => v.to_degrees(),
-        }
     }
 }
 

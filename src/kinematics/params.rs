@@ -196,16 +196,6 @@ impl ParamLayout {
     pub fn find(&self, name: &str) -> Option<ParamId> {
         self.ids.iter().copied().find(|&id| self.name(id) == name)
     }
-
-    /// Indices of the parameters of the measurement frame and the marker.
-    pub fn frame_and_marker_indices(&self) -> Vec<usize> {
-        self.ids
-            .iter()
-            .enumerate()
-            .filter(|(_, id)| matches!(id.transform, TransformId::Frame | TransformId::Marker))
-            .map(|(i, _)| i)
-            .collect()
-    }
 }
 
 /// Values of every error parameter of a layout (internal units).

@@ -116,11 +116,6 @@ impl LearnedModel {
         let y = self.learner.predict(&self.space.coords(q));
         y.iter().zip(&self.scale).map(|(v, s)| v / s).collect()
     }
-
-    /// The learner.
-    pub fn learner(&self) -> &Learner {
-        &self.learner
-    }
 }
 
 impl ErrorModel for LearnedModel {
