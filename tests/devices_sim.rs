@@ -155,7 +155,7 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
     let mut d = devices(&rig);
     let sim = d.sim.clone().unwrap();
     d.arm.home(T).unwrap();
-    d.table.enable(T).unwrap();
+    d.table().unwrap().enable(T).unwrap();
     let lines = sim.arm.as_ref().unwrap().lock().unwrap().received.len();
     let frames = sim.table.as_ref().unwrap().lock().unwrap().frames_received;
     let e = d
@@ -164,13 +164,13 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
         .unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Refused, "{e}");
     assert!(e.to_string().contains("J2"), "{e}");
-    let e = d.table.start_move([100.0, 600.0, 10.0], T).unwrap_err();
+    let e = d.table().unwrap().start_move([100.0, 600.0, 10.0], T).unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Refused, "{e}");
-    d.table.begin_pass();
-    d.table.start_move([100.0, 100.0, 200.0], T).unwrap();
-    d.table.wait_reached(T).unwrap();
+    d.table().unwrap().begin_pass();
+    d.table().unwrap().start_move([100.0, 100.0, 200.0], T).unwrap();
+    d.table().unwrap().wait_reached(T).unwrap();
     let frames = frames.max(sim.table.as_ref().unwrap().lock().unwrap().frames_received);
-    let e = d.table.start_move([100.0, 100.0, 150.0], T).unwrap_err();
+    let e = d.table().unwrap().start_move([100.0, 100.0, 150.0], T).unwrap_err();
     assert!(e.to_string().contains("ascend"), "{e}");
     assert_eq!(
         sim.arm.as_ref().unwrap().lock().unwrap().received.len(),
@@ -180,25 +180,25 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
         sim.table.as_ref().unwrap().lock().unwrap().frames_received,
         frames
     );
-    d.table.begin_pass();
-    d.table.start_move([100.0, 100.0, 150.0], T).unwrap();
+    d.table().unwrap().begin_pass();
+    d.table().unwrap().start_move([100.0, 100.0, 150.0], T).unwrap();
 }
 
 #[test]
 fn table_enables_moves_and_reads_back_on_trapezoidal_profiles() {
     let rig = rig();
     let mut d = devices(&rig);
-    d.table.enable(T).unwrap();
+    d.table().unwrap().enable(T).unwrap();
     let t0 = d.clock.now();
-    d.table.start_move([100.0, 200.0, 300.0], T).unwrap();
-    let p = d.table.wait_reached(T).unwrap();
+    d.table().unwrap().start_move([100.0, 200.0, 300.0], T).unwrap();
+    let p = d.table().unwrap().wait_reached(T).unwrap();
     for (a, b) in p.iter().zip([100.0, 200.0, 300.0]) {
         assert!((a - b).abs() <= 0.001, "{p:?}");
     }
     // The longest axis: 300 mm at 100 mm/s with 500 mm/s² → 3.2 s.
     let took = (d.clock.now() - t0).as_secs_f64();
     assert!((3.2..3.4).contains(&took), "{took}");
-    let again = d.table.position(T).unwrap();
+    let again = d.table().unwrap().position(T).unwrap();
     assert_eq!(again, p);
 }
 
@@ -207,14 +207,14 @@ fn drive_fault_stops_the_move_with_its_emcy_and_fault_reset_recovers() {
     let rig = rig();
     let mut d = devices(&rig);
     let faults = d.sim.clone().unwrap().table.unwrap();
-    d.table.enable(T).unwrap();
+    d.table().unwrap().enable(T).unwrap();
     faults.lock().unwrap().fault_on_next_move = Some(InjectedFault {
         axis: 2,
         after: Duration::from_millis(300),
         emcy_code: 0x8611,
     });
-    d.table.start_move([400.0, 280.0, 200.0], T).unwrap();
-    let e = d.table.wait_reached(T).unwrap_err();
+    d.table().unwrap().start_move([400.0, 280.0, 200.0], T).unwrap();
+    let e = d.table().unwrap().wait_reached(T).unwrap_err();
     match &e {
         DeviceError::DriveFault {
             axis,
@@ -229,9 +229,9 @@ fn drive_fault_stops_the_move_with_its_emcy_and_fault_reset_recovers() {
         other => panic!("{other}"),
     }
     assert!(!e.is_retryable());
-    d.table.fault_reset(T).unwrap();
-    d.table.start_move([400.0, 280.0, 200.0], T).unwrap();
-    let p = d.table.wait_reached(T).unwrap();
+    d.table().unwrap().fault_reset(T).unwrap();
+    d.table().unwrap().start_move([400.0, 280.0, 200.0], T).unwrap();
+    let p = d.table().unwrap().wait_reached(T).unwrap();
     assert!((p[2] - 200.0).abs() < 0.001);
 }
 
@@ -240,15 +240,15 @@ fn a_silent_drive_is_reported_after_three_heartbeat_periods_and_sdo_timeouts_fir
     let rig = rig();
     let mut d = devices(&rig);
     let faults = d.sim.clone().unwrap().table.unwrap();
-    d.table.enable(T).unwrap();
-    d.table.start_move([400.0, 280.0, 10.0], T).unwrap();
-    d.table.wait_reached(T).unwrap();
+    d.table().unwrap().enable(T).unwrap();
+    d.table().unwrap().start_move([400.0, 280.0, 10.0], T).unwrap();
+    d.table().unwrap().wait_reached(T).unwrap();
     d.clock.sleep(Duration::from_millis(250));
-    d.table.start_move([400.0, 280.0, 11.0], T).unwrap();
-    d.table.wait_reached(T).unwrap();
+    d.table().unwrap().start_move([400.0, 280.0, 11.0], T).unwrap();
+    d.table().unwrap().wait_reached(T).unwrap();
     faults.lock().unwrap().silent_heartbeat[1] = true;
     d.clock.sleep(Duration::from_millis(400));
-    let e = d.table.start_move([400.0, 280.0, 12.0], T).unwrap_err();
+    let e = d.table().unwrap().start_move([400.0, 280.0, 12.0], T).unwrap_err();
     match e {
         DeviceError::HeartbeatLost {
             axis,
@@ -264,7 +264,7 @@ fn a_silent_drive_is_reported_after_three_heartbeat_periods_and_sdo_timeouts_fir
     }
     faults.lock().unwrap().ignore_sdo = true;
     let t0 = d.clock.now();
-    let e = d.table.position(T).unwrap_err();
+    let e = d.table().unwrap().position(T).unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Timeout, "{e}");
     let waited = d.clock.now() - t0;
     assert!(
@@ -312,16 +312,18 @@ fn contact_is_measured_within_the_overshoot_rule() {
     };
     let centre_xy = [table_at_tip.x - 10.3, table_at_tip.y + 5.2];
     let zc = tip.z - tp.table_to_world_mm.z;
-    d.table.enable(T).unwrap();
-    d.table.begin_pass();
-    d.table
+    d.table().unwrap().enable(T).unwrap();
+    d.table().unwrap().begin_pass();
+    d.table()
+        .unwrap()
         .start_move([centre_xy[0], centre_xy[1], zc - 1.0], T)
         .unwrap();
-    d.table.wait_reached(T).unwrap();
-    let v = approach_speed(d.panel.latency(), d.table.latency(), 0.005);
+    d.table().unwrap().wait_reached(T).unwrap();
+    let v = approach_speed(d.panel().unwrap().latency(), d.table().unwrap().latency(), 0.005);
+    let (table, panel) = d.table_and_panel().unwrap();
     let c = measure_contact(
-        d.table.as_mut(),
-        d.panel.as_mut(),
+        table,
+        panel,
         centre_xy,
         zc - 1.0,
         zc + 0.5,
@@ -379,13 +381,14 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
     };
     let xy = [table_at_tip.x, table_at_tip.y];
     let zc = tip.z - tp.table_to_world_mm.z;
-    d.table.enable(T).unwrap();
-    d.table.start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
-    d.table.wait_reached(T).unwrap();
+    d.table().unwrap().enable(T).unwrap();
+    d.table().unwrap().start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
+    d.table().unwrap().wait_reached(T).unwrap();
     pf.lock().unwrap().miss_next_touch = true;
+    let (table, panel) = d.table_and_panel().unwrap();
     let e = measure_contact(
-        d.table.as_mut(),
-        d.panel.as_mut(),
+        table,
+        panel,
         xy,
         zc - 0.5,
         zc + 0.2,
@@ -398,18 +401,19 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
 
     // Back down, then garbage and a corrupted packet before the touch: counted, dropped, and
     // the next valid packet is the measurement.
-    d.table.begin_pass();
-    d.table.set_speed(100.0, T).unwrap();
-    d.table.start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
-    d.table.wait_reached(T).unwrap();
+    d.table().unwrap().begin_pass();
+    d.table().unwrap().set_speed(100.0, T).unwrap();
+    d.table().unwrap().start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
+    d.table().unwrap().wait_reached(T).unwrap();
     {
         let mut f = pf.lock().unwrap();
         f.garbage_before_next = vec![0x00, 0xFF, 0x70, 0x12];
         f.corrupt_next_packet = true;
     }
+    let (table, panel) = d.table_and_panel().unwrap();
     let c = measure_contact(
-        d.table.as_mut(),
-        d.panel.as_mut(),
+        table,
+        panel,
         xy,
         zc - 0.5,
         zc + 0.2,
@@ -422,7 +426,7 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
         "{:?}",
         c.touch
     );
-    let s = d.panel.stats();
+    let s = d.panel().unwrap().stats();
     assert!(s.bad_checksum >= 1 && s.discarded_bytes >= 4, "{s:?}");
 }
 
@@ -433,8 +437,8 @@ fn the_rig_file_backend_opens_the_simulated_devices_it_names() {
     assert!(d.clock.is_virtual(), "all devices are `sim` in rv-m2.toml");
     assert!(d.sim.is_some());
     d.arm.home(T).unwrap();
-    d.table.enable(T).unwrap();
-    assert_eq!(d.panel.stats(), rigcal::devices::PanelStats::default());
+    d.table().unwrap().enable(T).unwrap();
+    assert_eq!(d.panel().unwrap().stats(), rigcal::devices::PanelStats::default());
 }
 
 #[test]
@@ -473,11 +477,12 @@ fn threaded_emulators_serve_canopen_over_the_simulated_bus_and_movemaster_over_a
 fn waiting_for_the_table_times_out_with_target_and_position() {
     let rig = rig();
     let mut d = devices(&rig);
-    d.table.enable(T).unwrap();
-    d.table.start_move([400.0, 280.0, 500.0], T).unwrap();
+    d.table().unwrap().enable(T).unwrap();
+    d.table().unwrap().start_move([400.0, 280.0, 500.0], T).unwrap();
     let t0 = d.clock.now();
     let e = d
-        .table
+        .table()
+        .unwrap()
         .wait_reached(Duration::from_millis(300))
         .unwrap_err();
     let waited = d.clock.now() - t0;
@@ -495,6 +500,6 @@ fn waiting_for_the_table_times_out_with_target_and_position() {
         other => panic!("{other}"),
     }
     assert!(e.is_retryable());
-    let p = d.table.wait_reached(T).unwrap();
+    let p = d.table().unwrap().wait_reached(T).unwrap();
     assert!((p[2] - 500.0).abs() < 0.001);
 }

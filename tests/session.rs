@@ -12,6 +12,7 @@ use rand::{Rng, SeedableRng};
 use rigcal::devices::contact::{approach_speed, measure_contact};
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::{
+    InstrumentDevices,
     open_devices, Arm, ArmPose, ArmStatus, Backend, DeviceError, RigDevices, SimSetup, Table,
 };
 use rigcal::kinematics::{JointSpec, Robot};
@@ -63,17 +64,19 @@ fn a_contact_through_drivers_and_emulators_agrees_with_the_world() {
         let expected = reference.measure_at(&q, t_arrive, seq, 0);
         let want = expected.table.expect("the world measures this pose");
         let xy = [p.table_mm[0], p.table_mm[1]];
-        d.table.begin_pass();
-        d.table.enable(T).unwrap();
-        d.table.set_speed(100.0, T).unwrap();
-        d.table
+        d.table().unwrap().begin_pass();
+        d.table().unwrap().enable(T).unwrap();
+        d.table().unwrap().set_speed(100.0, T).unwrap();
+        d.table()
+            .unwrap()
             .start_move([xy[0], xy[1], p.table_mm[2] - 3.0], T)
             .unwrap();
-        d.table.wait_reached(T).unwrap();
-        let v = approach_speed(d.panel.latency(), d.table.latency(), 0.005);
+        d.table().unwrap().wait_reached(T).unwrap();
+        let v = approach_speed(d.panel().unwrap().latency(), d.table().unwrap().latency(), 0.005);
+        let (table, panel) = d.table_and_panel().unwrap();
         let c = measure_contact(
-            d.table.as_mut(),
-            d.panel.as_mut(),
+            table,
+            panel,
             xy,
             p.table_mm[2] - 3.0,
             p.table_mm[2] + 3.0,
@@ -424,12 +427,15 @@ fn wrap(
         at: arm_at,
         sent: Arc::clone(&log.arm),
     });
-    d.table = Box::new(FaultyTable {
-        inner: d.table,
-        moves: 0,
-        at: table_at,
-        sent: Arc::clone(&log.table),
-    });
+    if let InstrumentDevices::TablePanel { table, .. } = &mut d.instrument {
+        let inner = std::mem::replace(table, Box::new(rigcal::devices::MockTable::new()));
+        *table = Box::new(FaultyTable {
+            inner,
+            moves: 0,
+            at: table_at,
+            sent: Arc::clone(&log.table),
+        });
+    }
     (d, log)
 }
 
@@ -488,12 +494,15 @@ fn injected_faults_leave_a_complete_recording_with_every_skip_explained() {
     // Garbage bytes on the panel line before a packet: dropped, never measured.
     p2.lock().unwrap().garbage_before_next = vec![0xFF, 0x00, 0x13];
     // Three touches in a row missed: one point is skipped after its last attempt.
-    d.panel = Box::new(MissingPanel {
-        inner: d.panel,
-        calls: 0,
-        miss: 40..43,
-        faults: pf,
-    });
+    if let InstrumentDevices::TablePanel { panel, .. } = &mut d.instrument {
+        let inner = std::mem::replace(panel, Box::new(rigcal::devices::MockPanel::new()));
+        *panel = Box::new(MissingPanel {
+            inner,
+            calls: 0,
+            miss: 40..43,
+            faults: pf,
+        });
+    }
     let dir = tempfile::tempdir().unwrap();
     let report = run_session(
         &rig,

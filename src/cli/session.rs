@@ -7,7 +7,6 @@
 
 use crate::devices::clock::RealClock;
 use crate::devices::{open_devices, Backend, SimSetup};
-use crate::kinematics::Robot;
 use crate::recording::SessionInfo;
 use crate::rig::Rig;
 use crate::session::{
@@ -150,8 +149,6 @@ pub fn run(a: Args) -> Result<()> {
     };
     let progress = Progress::auto(points.len());
     let report = run_session(&rig, devices, world, &points, opts, &progress)?;
-    let joints = rig.chain.joints().len();
-    let _ = joints;
     println!(
         "session {}: {} points, {} measured{}, {} skipped, {} via rows, {} retries, {} faults cleared",
         a.out.display(),

@@ -1,5 +1,6 @@
 //! The one switch point: a rig file (and a choice between its transports and an all-simulated
-//! rig) in, the three boxed devices out, each wrapped in its safety limits.
+//! rig) in, the boxed devices out — arm plus table and panel, or arm plus a point sensor — each
+//! wrapped in its safety limits.
 //!
 //! Transports per device come from `[devices]`: `sim` (an emulator behind a polled link), a
 //! serial port path (arm, panel), `can0` / `socketcan:can0` or `slcan:/dev/ttyACM0` (table).
@@ -19,7 +20,8 @@ use crate::devices::emulators::{
 use crate::devices::panel_penmount::PenMountPanel;
 use crate::devices::safety::{LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
-use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, Table};
+use crate::devices::emulators::sensor::SimPointSensor;
+use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
 use crate::rig::{Instrument, Rig, TablePanel};
 use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
 
@@ -84,18 +86,90 @@ pub struct SimControls {
     pub physics: SharedPhysics,
 }
 
-/// The three devices of a rig.
+/// The devices of the rig's instrument.
+pub enum InstrumentDevices {
+    /// The x-y-z table (travel and ascending z enforced) and the touch panel.
+    TablePanel {
+        /// The table.
+        table: Box<dyn Table>,
+        /// The touch panel.
+        panel: Box<dyn Panel>,
+    },
+    /// A point sensor (tracker, motion capture, ideal instrument).
+    Sensor(Box<dyn PointSensor>),
+}
+
+/// The devices of a rig: the arm and its instrument.
 pub struct RigDevices {
     /// The arm (joint limits enforced).
     pub arm: Box<dyn Arm>,
-    /// The table (travel and ascending z enforced).
-    pub table: Box<dyn Table>,
-    /// The touch panel.
-    pub panel: Box<dyn Panel>,
+    /// The instrument.
+    pub instrument: InstrumentDevices,
     /// The clock the drivers use.
     pub clock: SharedClock,
     /// Emulator handles when any device is simulated.
     pub sim: Option<SimControls>,
+}
+
+fn no_table() -> DeviceError {
+    DeviceError::Config {
+        key: "table".into(),
+        reason: "the rig's instrument is a point sensor, not the table and panel".into(),
+    }
+}
+
+impl RigDevices {
+    /// True when the instrument is the table and panel.
+    pub fn has_table(&self) -> bool {
+        matches!(self.instrument, InstrumentDevices::TablePanel { .. })
+    }
+
+    /// The table, or a configuration error for a point-sensor rig.
+    pub fn table(&mut self) -> Result<&mut dyn Table, DeviceError> {
+        match &mut self.instrument {
+            InstrumentDevices::TablePanel { table, .. } => Ok(table.as_mut()),
+            InstrumentDevices::Sensor(_) => Err(no_table()),
+        }
+    }
+
+    /// The panel, or a configuration error for a point-sensor rig.
+    pub fn panel(&mut self) -> Result<&mut dyn Panel, DeviceError> {
+        self.table_and_panel().map(|(_, p)| p)
+    }
+
+    /// Table and panel at once (a contact needs both).
+    pub fn table_and_panel(&mut self) -> Result<(&mut dyn Table, &mut dyn Panel), DeviceError> {
+        match &mut self.instrument {
+            InstrumentDevices::TablePanel { table, panel } => Ok((table.as_mut(), panel.as_mut())),
+            InstrumentDevices::Sensor(_) => Err(no_table()),
+        }
+    }
+
+    /// Arm and table at once (they move together).
+    pub fn arm_and_table(&mut self) -> Result<(&mut dyn Arm, &mut dyn Table), DeviceError> {
+        match &mut self.instrument {
+            InstrumentDevices::TablePanel { table, .. } => Ok((self.arm.as_mut(), table.as_mut())),
+            InstrumentDevices::Sensor(_) => Err(no_table()),
+        }
+    }
+
+    /// Stops the table where it is, if the rig has one (after a fault; errors are moot then).
+    pub fn halt_table(&mut self, timeout: std::time::Duration) {
+        if let Ok(t) = self.table() {
+            let _ = t.halt(timeout);
+        }
+    }
+
+    /// The point sensor, or a configuration error for a table rig.
+    pub fn sensor(&mut self) -> Result<&mut dyn PointSensor, DeviceError> {
+        match &mut self.instrument {
+            InstrumentDevices::Sensor(s) => Ok(s.as_mut()),
+            InstrumentDevices::TablePanel { .. } => Err(DeviceError::Config {
+                key: "sensor".into(),
+                reason: "the rig's instrument is the table and panel, not a point sensor".into(),
+            }),
+        }
+    }
 }
 
 impl std::fmt::Debug for RigDevices {
@@ -203,8 +277,86 @@ fn is_sim(t: &str) -> bool {
     t.trim() == "sim"
 }
 
-/// Opens the rig's three devices.
+/// Opens the rig's devices: the arm and its instrument (table and panel, or a point sensor).
 pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
+    match &rig.instrument {
+        Instrument::TablePanel(_) => open_table_rig(rig, backend),
+        Instrument::Ideal | Instrument::Tracker => open_sensor_rig(rig, backend),
+    }
+}
+
+/// The Movemaster arm over an emulator (`Some`) or the rig file's serial port.
+fn open_arm(
+    rig: &Rig,
+    cfg: &DevicesConfig,
+    emulator: Option<ArmEmulator>,
+    controls: Option<&mut SimControls>,
+    clock: &SharedClock,
+) -> Result<Box<dyn Arm>, DeviceError> {
+    let arm: Box<dyn Arm> = match emulator {
+        Some(e) => {
+            if let Some(c) = controls {
+                c.arm = Some(e.faults());
+            }
+            let io = PolledSerial::new(e, Arc::clone(clock));
+            Box::new(MovemasterArm::new(
+                io,
+                rig.chain.clone(),
+                &cfg.arm,
+                Arc::clone(clock),
+            )?)
+        }
+        None => {
+            let io = open_serial("arm", &cfg.arm.transport, &cfg.arm.serial)?;
+            Box::new(MovemasterArm::new(
+                io,
+                rig.chain.clone(),
+                &cfg.arm,
+                Arc::clone(clock),
+            )?)
+        }
+    };
+    use crate::kinematics::Robot;
+    Ok(Box::new(LimitedArm::new(arm, rig.chain.joints().to_vec())))
+}
+
+/// A rig measured by a point sensor. No tracker driver exists yet: the sensor is simulated, so
+/// the arm must be too (a real arm beside a simulated sensor would measure nothing real).
+fn open_sensor_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
+    let cfg = rig.devices.clone().unwrap_or_default();
+    cfg.validate()
+        .map_err(|(key, reason)| DeviceError::Config { key, reason })?;
+    let setup = match backend {
+        Backend::Simulated(setup) => setup,
+        Backend::RigFile if is_sim(&cfg.arm.transport) => SimSetup::nominal(rig),
+        Backend::RigFile => {
+            return Err(DeviceError::Config {
+                key: "arm.transport".into(),
+                reason: "the rig measures with a point sensor (tracker or ideal instrument), for which rigcal has no hardware driver yet; run a dry run (--sim SCENARIO or arm transport \"sim\")".into(),
+            })
+        }
+    };
+    let clock = Arc::clone(&setup.clock);
+    let mut controls = SimControls {
+        arm: None,
+        table: None,
+        panel: None,
+        table_truth: Arc::new(Mutex::new(TableTruth::at(setup.table_start_mm))),
+        physics: Arc::clone(&setup.physics),
+    };
+    let emulator = ArmEmulator::new(rig, &cfg.arm, Arc::clone(&setup.physics));
+    let arm = open_arm(rig, &cfg, Some(emulator), Some(&mut controls), &clock)?;
+    let sensor = SimPointSensor::new(Arc::clone(&setup.physics), Arc::clone(&clock));
+    Ok(RigDevices {
+        arm,
+        instrument: InstrumentDevices::Sensor(Box::new(sensor)),
+        clock,
+        sim: Some(controls),
+    })
+}
+
+/// The RV-M2 rig: arm, table and panel, each from the rig file or simulated.
+fn open_table_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
     let cfg = rig.devices.clone().unwrap_or_default();
     cfg.validate()
         .map_err(|(key, reason)| DeviceError::Config { key, reason })?;
@@ -243,29 +395,13 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
         None => (None, None, None),
     };
 
-    let arm: Box<dyn Arm> = match emu_arm.filter(|_| sim_arm) {
-        Some(e) => {
-            if let Some(c) = controls.as_mut() {
-                c.arm = Some(e.faults());
-            }
-            let io = PolledSerial::new(e, Arc::clone(&clock));
-            Box::new(MovemasterArm::new(
-                io,
-                rig.chain.clone(),
-                &cfg.arm,
-                Arc::clone(&clock),
-            )?)
-        }
-        None => {
-            let io = open_serial("arm", &cfg.arm.transport, &cfg.arm.serial)?;
-            Box::new(MovemasterArm::new(
-                io,
-                rig.chain.clone(),
-                &cfg.arm,
-                Arc::clone(&clock),
-            )?)
-        }
-    };
+    let arm = open_arm(
+        rig,
+        &cfg,
+        emu_arm.filter(|_| sim_arm),
+        controls.as_mut(),
+        &clock,
+    )?;
     let table: Box<dyn Table> = match emu_table.filter(|_| sim_table) {
         Some(e) => {
             if let Some(c) = controls.as_mut() {
@@ -305,15 +441,16 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
             ))
         }
     };
-    use crate::kinematics::Robot;
     Ok(RigDevices {
-        arm: Box::new(LimitedArm::new(arm, rig.chain.joints().to_vec())),
-        table: Box::new(LimitedTable::new(
-            table,
-            [tp.travel_mm.x, tp.travel_mm.y, tp.travel_mm.z],
-            cfg.table.pass_retract_mm,
-        )),
-        panel,
+        arm,
+        instrument: InstrumentDevices::TablePanel {
+            table: Box::new(LimitedTable::new(
+                table,
+                [tp.travel_mm.x, tp.travel_mm.y, tp.travel_mm.z],
+                cfg.table.pass_retract_mm,
+            )),
+            panel,
+        },
         clock,
         sim: controls,
     })

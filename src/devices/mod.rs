@@ -3,14 +3,14 @@
 //!
 //! | module | holds |
 //! |---|---|
-//! | [`traits`] | [`Arm`], [`Table`], [`Panel`] and [`DeviceError`] |
+//! | [`traits`] | [`Arm`], [`Table`], [`Panel`], [`PointSensor`] and [`DeviceError`] |
 //! | [`config`] | the rig file's `[devices]` section |
 //! | [`arm_movemaster`], [`table_canopen`], [`panel_penmount`] | drivers over any transport |
 //! | [`safety`] | joint limits, table travel, ascending z: refused before a byte is sent |
 //! | [`contact`] | the contact measurement and the approach-speed rule |
 //! | [`factory`] | the one switch point: rig file → the three boxed devices |
 //! | [`clock`] | real time and a shared virtual clock |
-//! | [`emulators`] | simulated back-ends speaking each protocol, with fault injection |
+//! | [`emulators`] | simulated back-ends speaking each protocol, with fault injection; a simulated point sensor |
 //!
 //! Units: joints in radians, table and panel in millimetres, times as [`std::time::Duration`]
 //! on a [`clock::Clock`]. The session code cannot tell simulated devices from real ones.
@@ -27,10 +27,10 @@ pub mod table_canopen;
 pub mod traits;
 
 pub use config::DevicesConfig;
-pub use factory::{open_devices, Backend, RigDevices, SimControls, SimSetup};
+pub use factory::{open_devices, Backend, InstrumentDevices, RigDevices, SimControls, SimSetup};
 pub use traits::{
-    Arm, ArmPose, ArmStatus, DeviceError, DeviceErrorKind, DeviceName, Panel, PanelStats, Table,
-    Touch,
+    Arm, ArmPose, ArmStatus, DeviceError, DeviceErrorKind, DeviceName, Panel, PanelStats,
+    PointSensor, Table, Touch,
 };
 #[cfg(any(test, feature = "mock"))]
-pub use traits::{MockArm, MockPanel, MockTable};
+pub use traits::{MockArm, MockPanel, MockPointSensor, MockTable};

@@ -24,6 +24,8 @@ pub enum DeviceName {
     Table,
     /// The touch panel.
     Panel,
+    /// A point sensor: a laser tracker, a motion-capture system, or the papers' ideal instrument.
+    Sensor,
 }
 
 impl std::fmt::Display for DeviceName {
@@ -32,6 +34,7 @@ impl std::fmt::Display for DeviceName {
             DeviceName::Arm => "arm",
             DeviceName::Table => "table",
             DeviceName::Panel => "panel",
+            DeviceName::Sensor => "sensor",
         })
     }
 }
@@ -288,6 +291,18 @@ pub enum ArmStatus {
     HardwareError,
     /// Error mode II: position out of range or command format; `RS` clears it.
     PositionError,
+}
+
+/// A point sensor — a laser tracker, a motion-capture system, or the papers' ideal instrument:
+/// reads where the marker on the last link is, in the sensor's own frame (mm). The arm must be
+/// at rest; the reading is the marker's position at the moment of the call.
+#[cfg_attr(any(test, feature = "mock"), mockall::automock)]
+pub trait PointSensor: Send {
+    /// Reads the marker position (mm, sensor frame); a marker out of view is a retryable
+    /// [`DeviceError::Timeout`].
+    fn read(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
+    /// Time from the call to the reading (settling plus averaging).
+    fn latency(&self) -> Duration;
 }
 
 /// A robot arm moved joint by joint.

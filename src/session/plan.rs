@@ -36,9 +36,6 @@ pub const REFERENCE_REGION: &str = "ref";
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum PlanError {
-    /// The rig has no table-and-panel instrument.
-    #[error("the rig's instrument is not kind = \"table_panel\"; sessions plan table positions")]
-    NotTablePanel,
     /// Too few measurable points were found.
     #[error("found only {found} measurable points of {wanted} after {drawn} random poses; lower --points or use a rig with a larger measurable workspace")]
     TooFewPoints {
@@ -124,7 +121,8 @@ pub struct PlannedPoint {
     pub region: String,
     /// Joint values (rad).
     pub q: Vec<f64>,
-    /// Table position at nominal contact (mm, table frame).
+    /// Table position at nominal contact (mm, table frame); on a point-sensor rig (tracker,
+    /// ideal instrument), the nominal marker position (mm, world frame), which orders the points.
     pub table_mm: [f64; 3],
 }
 
@@ -158,6 +156,17 @@ pub fn table_target(rig: &Rig, q: &[f64]) -> Option<[f64; 3]> {
     Some([t.x, t.y, t.z])
 }
 
+/// Where a point is planned: [`table_target`] on the table rig, the nominal marker position
+/// (world mm) on a point-sensor rig.
+pub fn target_point(rig: &Rig, q: &[f64]) -> [f64; 3] {
+    table_target(rig, q).unwrap_or_else(|| {
+        let tip = rig
+            .chain
+            .position(q, &ErrorParams::zeros(rig.chain.layout()));
+        [tip.x, tip.y, tip.z]
+    })
+}
+
 /// Joint-space region boxes (the division rule applied until there are `n`).
 fn region_boxes(space: &DivisionSpace, n: usize) -> Vec<Bounds> {
     let mut boxes = vec![space.full];
@@ -175,9 +184,6 @@ fn region_boxes(space: &DivisionSpace, n: usize) -> Vec<Bounds> {
 
 /// Plans a session on `rig`.
 pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
-    if !matches!(rig.instrument, Instrument::TablePanel(_)) {
-        return Err(PlanError::NotTablePanel);
-    }
     let space =
         DivisionSpace::new(rig, Space::Joint).map_err(|e| PlanError::Space(e.to_string()))?;
     let boxes = region_boxes(&space, opts.regions);
@@ -194,12 +200,12 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
         match rig.measurable(&q) {
             Err(reason) => dropped.push(Dropped { q, reason }),
             Ok(()) => {
-                let t = table_target(rig, &q).ok_or(PlanError::NotTablePanel)?;
+                let t = target_point(rig, &q);
                 let travel_z = match &rig.instrument {
-                    Instrument::TablePanel(tp) => tp.travel_mm.z,
-                    _ => f64::MAX,
+                    Instrument::TablePanel(tp) => Some(tp.travel_mm.z),
+                    _ => None,
                 };
-                if t[2] < opts.z_room_mm || t[2] > travel_z - opts.z_room_mm {
+                if travel_z.is_some_and(|z| t[2] < opts.z_room_mm || t[2] > z - opts.z_room_mm) {
                     // The approach starts below the contact and ends above it: that room must
                     // lie within the travel, or the pin is already on the panel at the start.
                     dropped.push(Dropped {
@@ -207,7 +213,7 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
                         reason: Unmeasurable::TableTravel {
                             axis: 'z',
                             position_mm: t[2],
-                            travel_mm: travel_z,
+                            travel_mm: travel_z.unwrap_or(f64::INFINITY),
                         },
                     });
                     continue;
@@ -228,21 +234,19 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             drawn,
         });
     }
-    // The reference: the point nearest the middle of the table's travel.
-    let reference = match &rig.instrument {
-        Instrument::TablePanel(tp) => found
-            .iter()
-            .min_by(|a, b| {
-                let d = |t: &[f64; 3]| {
-                    (0..3)
-                        .map(|k| (t[k] - tp.travel_mm[k] / 2.0).powi(2))
-                        .sum::<f64>()
-                };
-                d(&a.2).total_cmp(&d(&b.2))
-            })
-            .map(|(_, q, t)| (q.clone(), *t)),
-        _ => None,
+    // The reference: the point nearest the middle of the table's travel (of the planned points,
+    // on a point-sensor rig).
+    let middle: [f64; 3] = match &rig.instrument {
+        Instrument::TablePanel(tp) => std::array::from_fn(|k| tp.travel_mm[k] / 2.0),
+        _ => std::array::from_fn(|k| {
+            found.iter().map(|f| f.2[k]).sum::<f64>() / found.len().max(1) as f64
+        }),
     };
+    let from_middle = |t: &[f64; 3]| (0..3).map(|k| (t[k] - middle[k]).powi(2)).sum::<f64>();
+    let reference = found
+        .iter()
+        .min_by(|a, b| from_middle(&a.2).total_cmp(&from_middle(&b.2)))
+        .map(|(_, q, t)| (q.clone(), *t));
     let mut order: Vec<usize> = (0..boxes.len()).collect();
     order.shuffle(&mut rng);
     let mut points: Vec<PlannedPoint> = Vec::with_capacity(found.len() + 8);
@@ -451,7 +455,7 @@ pub struct RigTimeEstimate {
 
 /// Estimates the rig time of `points` from the device speeds: per point, the slower of the arm
 /// (via then target, largest joint change) and the table (trapezoidal profile per axis), then
-/// the two-stage contact, plus the overhead.
+/// the two-stage contact (a sensor reading on a point-sensor rig), plus the overhead.
 pub fn estimate(
     rig: &Rig,
     points: &[PlannedPoint],
@@ -480,7 +484,8 @@ pub fn estimate(
             p.table_mm[1],
             p.table_mm[2] - contact.margin_mm,
         ];
-        let table_s = t_at.map_or(0.0, |from| {
+        let table_rig = matches!(rig.instrument, Instrument::TablePanel(_));
+        let table_s = t_at.filter(|_| table_rig).map_or(0.0, |from| {
             (0..3)
                 .map(|k| {
                     Profile::new(
@@ -495,9 +500,13 @@ pub fn estimate(
                 })
                 .fold(0.0, f64::max)
         });
-        let contact_s = contact.margin_mm / contact.fast_mm_s
-            + contact.backoff_mm / speeds.table_mm_s.max(1e-9)
-            + contact.backoff_mm / speeds.approach_mm_s.max(1e-9);
+        let contact_s = if table_rig {
+            contact.margin_mm / contact.fast_mm_s
+                + contact.backoff_mm / speeds.table_mm_s.max(1e-9)
+                + contact.backoff_mm / speeds.approach_mm_s.max(1e-9)
+        } else {
+            crate::devices::emulators::sensor::SENSOR_LATENCY.as_secs_f64()
+        };
         est.motion_s += arm_s.max(table_s);
         est.contact_s += contact_s + speeds.overhead_s;
         q_at = Some(p.q.clone());
@@ -507,15 +516,20 @@ pub fn estimate(
     est
 }
 
-/// Writes `plan.csv`: `point,region,q1_deg..qN_deg,table_x_mm,table_y_mm,table_z_mm`.
+/// Writes `plan.csv`: `point,region,q1_deg..qN_deg,table_x_mm,table_y_mm,table_z_mm` (on a
+/// point-sensor rig `tip_x_mm,tip_y_mm,tip_z_mm`, the nominal marker position in the world).
 pub fn write_plan(path: &Path, rig: &Rig, points: &[PlannedPoint]) -> Result<(), PlanError> {
+    let target_columns = match rig.instrument {
+        Instrument::TablePanel(_) => ",table_x_mm,table_y_mm,table_z_mm\n",
+        _ => ",tip_x_mm,tip_y_mm,tip_z_mm\n",
+    };
     use std::fmt::Write;
     let joints = rig.chain.joints();
     let mut s = String::from("point,region");
     for (i, j) in joints.iter().enumerate() {
         let _ = write!(s, ",{}", j.kind.column(i + 1));
     }
-    s.push_str(",table_x_mm,table_y_mm,table_z_mm\n");
+    s.push_str(target_columns);
     for p in points {
         let _ = write!(s, "{},{}", p.point, p.region);
         for (spec, v) in joints.iter().zip(&p.q) {

@@ -11,6 +11,10 @@
 //! session (resume with `--resume` after clearing the cause). A point the rig cannot measure, or
 //! one still failing after the last attempt, becomes a `skipped: REASON` row.
 //!
+//! On a point-sensor rig (a tracker, or the ideal instrument of the papers' simulations) a point
+//! is the via pose, the target, and one sensor reading; there is no registration step (the
+//! sensor's frame is the world, or free and fitted with the kinematics, conventions §1).
+//!
 //! Rows (conventions §6): `via` for the pre-approach and registration moves, `ok` for a
 //! measurement, `skipped: …` for a point given up. Measurement draws of the simulated world are
 //! keyed by (seed, seq, attempt).
@@ -25,7 +29,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::devices::contact::{approach_speed, measure_contact, Contact};
 use crate::devices::emulators::world_physics::SharedWorld;
-use crate::devices::{Arm, DeviceError, RigDevices, Table};
+use crate::devices::{DeviceError, RigDevices};
 use crate::identification::{random_poses, register, Observation};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::recording::{
@@ -220,7 +224,10 @@ impl Progress {
 
 /// How one point ended.
 enum Outcome {
+    /// A contact on the table rig.
     Measured(Contact),
+    /// A point sensor's reading (sensor frame, mm).
+    Seen([f64; 3]),
     Skipped(String),
 }
 
@@ -276,15 +283,14 @@ pub fn run_session(
         .arm
         .set_speed(cfg.arm.speed, IO)
         .map_err(dev("setting the arm speed"))?;
-    devices
-        .table
-        .enable(IO * 5)
-        .map_err(dev("enabling the table"))?;
-    let approach_mm_s = approach_speed(
-        devices.panel.latency(),
-        devices.table.latency(),
-        cfg.panel.max_overshoot_mm,
-    );
+    // The table's contact speed follows the latency rule; a point sensor needs none.
+    let approach_mm_s = match devices.table_and_panel() {
+        Ok((table, panel)) => {
+            table.enable(IO * 5).map_err(dev("enabling the table"))?;
+            approach_speed(panel.latency(), table.latency(), cfg.panel.max_overshoot_mm)
+        }
+        Err(_) => 0.0,
+    };
     let joints = rig.chain.joints();
     let journal = if opts.resume {
         match Journal::load(&dir) {
@@ -402,22 +408,9 @@ impl Runner<'_> {
                 .map_err(dev("moving the arm back to its last pose"))?;
             self.arm_q = Some(q);
         }
-        if let Some(t) = j.table_mm {
-            self.dev.table.begin_pass();
+        if let Some(t) = j.table_mm.filter(|_| self.dev.has_table()) {
             self.pass_top = None;
-            self.dev
-                .table
-                .set_speed(self.travel_mm_s, IO)
-                .map_err(dev("setting the table speed"))?;
-            self.dev
-                .table
-                .start_move(t, IO)
-                .map_err(dev("moving the table back"))?;
-            let at = self
-                .dev
-                .table
-                .wait_reached(MOVE)
-                .map_err(dev("moving the table back"))?;
+            let at = self.table_back(t).map_err(dev("moving the table back"))?;
             self.table_at = Some(at);
         }
         if let (Some(w), Some(h)) = (&self.world, &j.history) {
@@ -439,6 +432,15 @@ impl Runner<'_> {
             }
         }
         Ok(j.next_point)
+    }
+
+    /// Returns the table to `t` on a resume (a new pass: it may have to go down).
+    fn table_back(&mut self, t: [f64; 3]) -> Result<[f64; 3], DeviceError> {
+        let table = self.dev.table()?;
+        table.begin_pass();
+        table.set_speed(self.travel_mm_s, IO)?;
+        table.start_move(t, IO)?;
+        table.wait_reached(MOVE)
     }
 
     /// Saves the journal: the state after the last finished point.
@@ -489,11 +491,11 @@ impl Runner<'_> {
 
     /// Moves the arm to `q` while the table travels to `table` (both at once).
     fn move_both(&mut self, q: &[f64], table: [f64; 3]) -> Result<Vec<f64>, DeviceError> {
-        self.dev.table.set_speed(self.travel_mm_s, IO)?;
+        self.dev.table()?.set_speed(self.travel_mm_s, IO)?;
         self.start_move(table)?;
-        let arm: &mut Box<dyn Arm> = &mut self.dev.arm;
-        let tab: &mut Box<dyn Table> = &mut self.dev.table;
-        let (a, t) = if self.dev.clock.is_virtual() {
+        let virtual_clock = self.dev.clock.is_virtual();
+        let (arm, tab) = self.dev.arm_and_table()?;
+        let (a, t) = if virtual_clock {
             // Deterministic: the table moves on its profile while the arm's wait advances the
             // shared virtual clock.
             let a = arm.move_to(q, MOVE);
@@ -529,7 +531,7 @@ impl Runner<'_> {
     fn travel(&mut self, via: &[f64], start: [f64; 3]) -> Result<Vec<f64>, DeviceError> {
         let here = match self.table_at {
             Some(p) => p,
-            None => self.dev.table.position(IO)?,
+            None => self.dev.table()?.position(IO)?,
         };
         // Below the current height, the next approach start and the via pose's tip.
         let via_z =
@@ -538,22 +540,22 @@ impl Runner<'_> {
         if let Some(top) = self.pass_top {
             if clear < top - self.retract_mm {
                 // Going this low breaks the ascending pass: start a new one (away from the pin).
-                self.dev.table.begin_pass();
+                self.dev.table()?.begin_pass();
                 self.pass_top = None;
                 self.report.extra_passes += 1;
             }
         }
         if here[2] > clear + 1e-3 {
-            self.dev.table.set_speed(self.travel_mm_s, IO)?;
+            self.dev.table()?.set_speed(self.travel_mm_s, IO)?;
             self.start_move([here[0], here[1], clear])?;
-            self.table_at = Some(self.dev.table.wait_reached(MOVE)?);
+            self.table_at = Some(self.dev.table()?.wait_reached(MOVE)?);
         }
         self.move_both(via, [start[0], start[1], clear])
     }
 
     /// Starts a table move and tracks the pass's top.
     fn start_move(&mut self, target: [f64; 3]) -> Result<(), DeviceError> {
-        self.dev.table.start_move(target, IO)?;
+        self.dev.table()?.start_move(target, IO)?;
         self.pass_top = Some(self.pass_top.map_or(target[2], |z| z.max(target[2])));
         Ok(())
     }
@@ -579,8 +581,8 @@ impl Runner<'_> {
         }
         Ok(match e {
             DeviceError::DriveFault { .. } | DeviceError::FollowingError { .. } => {
-                let _ = self.dev.table.halt(IO);
-                match self.dev.table.fault_reset(IO * 5) {
+                self.dev.halt_table(IO);
+                match self.dev.table().and_then(|t| t.fault_reset(IO * 5)) {
                     Ok(()) => {
                         self.report.faults_cleared.push(format!("table: {e}"));
                         true
@@ -614,7 +616,9 @@ impl Runner<'_> {
     /// registration pose).
     fn pass(&mut self, region: &str) {
         if self.pass_region.as_deref() != Some(region) || region == "reg" {
-            self.dev.table.begin_pass();
+            if let Ok(t) = self.dev.table() {
+                t.begin_pass();
+            }
             self.pass_top = None;
             self.pass_region = Some(region.to_string());
         }
@@ -673,15 +677,16 @@ impl Runner<'_> {
                 // Back to the approach start (a retry) — a small descent within the pass.
                 let here = self.table_at.unwrap_or(start);
                 if (here[2] - start[2]).abs() > 1e-3 || (here[0] - start[0]).abs() > 1e-3 {
-                    self.dev.table.set_speed(self.travel_mm_s, IO)?;
+                    self.dev.table()?.set_speed(self.travel_mm_s, IO)?;
                     self.start_move(start)?;
-                    self.table_at = Some(self.dev.table.wait_reached(MOVE)?);
+                    self.table_at = Some(self.dev.table()?.wait_reached(MOVE)?);
                 }
                 let xy = [start[0], start[1]];
                 let timeout = |d: f64, v: f64| Duration::from_secs_f64(2.0 * d / v + 2.0);
+                let (table, panel) = self.dev.table_and_panel()?;
                 let first = measure_contact(
-                    self.dev.table.as_mut(),
-                    self.dev.panel.as_mut(),
+                    table,
+                    panel,
                     xy,
                     start[2],
                     end_z,
@@ -705,13 +710,14 @@ impl Runner<'_> {
                     )));
                 }
                 let back = (first.table_mm[2] - c.backoff_mm).max(0.0);
-                self.dev.table.set_speed(self.travel_mm_s, IO)?;
+                self.dev.table()?.set_speed(self.travel_mm_s, IO)?;
                 self.start_move([xy[0], xy[1], back])?;
-                self.dev.table.wait_reached(MOVE)?;
+                self.dev.table()?.wait_reached(MOVE)?;
                 let top = (first.table_mm[2] + 2.0 * c.backoff_mm).min(zmax);
+                let (table, panel) = self.dev.table_and_panel()?;
                 let fin = measure_contact(
-                    self.dev.table.as_mut(),
-                    self.dev.panel.as_mut(),
+                    table,
+                    panel,
                     xy,
                     back,
                     top,
@@ -759,7 +765,7 @@ impl Runner<'_> {
         stage: &str,
     ) -> Result<Option<Outcome>, SessionError> {
         if Self::fatal(e) {
-            let _ = self.dev.table.halt(IO);
+            self.dev.halt_table(IO);
             return Err(SessionError::Device {
                 stage: format!("point seq {}: {stage}", self.seq),
                 source: clone_error(e),
@@ -771,7 +777,7 @@ impl Runner<'_> {
             ))));
         }
         if !self.recover(e)? {
-            let _ = self.dev.table.halt(IO);
+            self.dev.halt_table(IO);
             return Err(SessionError::Device {
                 stage: format!("point seq {}: {stage}", self.seq),
                 source: clone_error(e),
@@ -793,14 +799,77 @@ impl Runner<'_> {
         Ok(None)
     }
 
+    /// Measures at `q` with a point sensor: via move, final move, one reading, retries.
+    fn sight(
+        &mut self,
+        point: usize,
+        region: &str,
+        q: &[f64],
+    ) -> Result<(Vec<f64>, Outcome), SessionError> {
+        let signs = approach_signs(self.rig, point);
+        let via = via_pose(self.rig, q, &signs, self.opts.contact.via_delta);
+        let mut attempt = 0u32;
+        loop {
+            self.set_draws(self.seq, attempt);
+            match self.dev.arm.move_to(&via, MOVE) {
+                Ok(done) => {
+                    self.arm_q = Some(done.clone());
+                    let m = self.row(done, region, Status::Via);
+                    self.write(m)?;
+                    self.report.via += 1;
+                    break;
+                }
+                Err(e) => {
+                    if let Some(out) = self.handle(&e, &mut attempt, "moving to the via pose")? {
+                        return Ok((q.to_vec(), out));
+                    }
+                }
+            }
+        }
+        let mut attempt = 0u32;
+        let mut commanded: Option<Vec<f64>> = None;
+        loop {
+            self.set_draws(self.seq, attempt);
+            let step: Result<[f64; 3], DeviceError> = (|| {
+                if commanded.is_none() {
+                    let done = self.dev.arm.move_to(q, MOVE)?;
+                    self.arm_q = Some(done.clone());
+                    commanded = Some(done);
+                }
+                self.dev.sensor()?.read(IO)
+            })();
+            match step {
+                Ok(p) => return Ok((commanded.unwrap_or_else(|| q.to_vec()), Outcome::Seen(p))),
+                Err(e) => {
+                    if arm_lost_track(&e) || matches!(e, DeviceError::ArmErrorMode { .. }) {
+                        commanded = None;
+                    }
+                    if let Some(out) = self.handle(&e, &mut attempt, "reading the sensor")? {
+                        return Ok((commanded.unwrap_or_else(|| q.to_vec()), out));
+                    }
+                }
+            }
+        }
+    }
+
     fn point(&mut self, p: &PlannedPoint) -> Result<(), SessionError> {
         if let Err(reason) = self.rig.measurable(&p.q) {
             let m = self.row(p.q.clone(), &p.region, Status::Skipped(reason.to_string()));
             self.report.skipped.push((p.point, reason.to_string()));
             return self.write(m);
         }
-        let (q, out) = self.measure(p.point, &p.region, &p.q, p.table_mm)?;
+        let (q, out) = if self.dev.has_table() {
+            self.measure(p.point, &p.region, &p.q, p.table_mm)?
+        } else {
+            self.sight(p.point, &p.region, &p.q)?
+        };
         match out {
+            Outcome::Seen(reading) => {
+                let mut m = self.row(q, &p.region, Status::Ok);
+                m.position = Some(Vector3::from(reading));
+                self.report.ok += 1;
+                self.write(m)
+            }
             Outcome::Measured(c) => {
                 let t = Vector3::from(c.point_table_mm());
                 let mut m = self.row(q, &p.region, Status::Ok);
@@ -821,6 +890,12 @@ impl Runner<'_> {
     /// Measures random reachable poses with the nominal kinematics and fits the table-to-world
     /// transform (conventions §1); writes it to session.toml.
     fn registration_step(&mut self) -> Result<(), SessionError> {
+        if !self.dev.has_table() {
+            // A point sensor's frame is the world (ideal instrument) or free, fitted with the
+            // kinematics (a tracker, conventions §1): nothing to register before the session.
+            self.registration = Isometry3::identity();
+            return self.write_info();
+        }
         let n = self.opts.registration_points;
         if n == 0 {
             self.registration = match &self.rig.instrument {

@@ -16,6 +16,7 @@
 pub mod arm;
 pub mod panel;
 pub mod physics;
+pub mod sensor;
 pub mod table;
 pub mod world_physics;
 

@@ -32,6 +32,11 @@ pub trait RigPhysics: Send {
     fn pin(&self, t: Duration) -> Option<PinState>;
     /// The true panel centre (world mm) when the table's axes stand at `table_mm` (table frame).
     fn panel_centre_world(&self, table_mm: Vector3<f64>) -> Vector3<f64>;
+    /// What a point sensor reads at time `t` (sensor frame, mm): the true tip plus the
+    /// instrument's noise; `None` before any command. Without noise, the tip itself.
+    fn sensor_reading(&self, t: Duration) -> Option<Vector3<f64>> {
+        self.pin(t).map(|p| p.tip_mm)
+    }
 }
 
 impl std::fmt::Debug for dyn RigPhysics {

@@ -105,6 +105,13 @@ impl RigPhysics for WorldPhysics {
     fn panel_centre_world(&self, table_mm: Vector3<f64>) -> Vector3<f64> {
         self.world.panel_centre(&table_mm).unwrap_or(table_mm)
     }
+
+    fn sensor_reading(&self, t: Duration) -> Option<Vector3<f64>> {
+        // The same draws as the arm's scatter: a function of (seed, seq, attempt) only.
+        let draws = self.world.draws(self.seq, self.attempt);
+        self.pin(t)
+            .map(|p| p.tip_mm + draws.noise * self.world.settings().noise_mm)
+    }
 }
 
 impl SimSetup {
