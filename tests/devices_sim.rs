@@ -164,13 +164,24 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
         .unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Refused, "{e}");
     assert!(e.to_string().contains("J2"), "{e}");
-    let e = d.table().unwrap().start_move([100.0, 600.0, 10.0], T).unwrap_err();
+    let e = d
+        .table()
+        .unwrap()
+        .start_move([100.0, 600.0, 10.0], T)
+        .unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Refused, "{e}");
     d.table().unwrap().begin_pass();
-    d.table().unwrap().start_move([100.0, 100.0, 200.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([100.0, 100.0, 200.0], T)
+        .unwrap();
     d.table().unwrap().wait_reached(T).unwrap();
     let frames = frames.max(sim.table.as_ref().unwrap().lock().unwrap().frames_received);
-    let e = d.table().unwrap().start_move([100.0, 100.0, 150.0], T).unwrap_err();
+    let e = d
+        .table()
+        .unwrap()
+        .start_move([100.0, 100.0, 150.0], T)
+        .unwrap_err();
     assert!(e.to_string().contains("ascend"), "{e}");
     assert_eq!(
         sim.arm.as_ref().unwrap().lock().unwrap().received.len(),
@@ -181,7 +192,10 @@ fn moves_outside_limits_or_travel_are_refused_before_any_byte() {
         frames
     );
     d.table().unwrap().begin_pass();
-    d.table().unwrap().start_move([100.0, 100.0, 150.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([100.0, 100.0, 150.0], T)
+        .unwrap();
 }
 
 #[test]
@@ -190,7 +204,10 @@ fn table_enables_moves_and_reads_back_on_trapezoidal_profiles() {
     let mut d = devices(&rig);
     d.table().unwrap().enable(T).unwrap();
     let t0 = d.clock.now();
-    d.table().unwrap().start_move([100.0, 200.0, 300.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([100.0, 200.0, 300.0], T)
+        .unwrap();
     let p = d.table().unwrap().wait_reached(T).unwrap();
     for (a, b) in p.iter().zip([100.0, 200.0, 300.0]) {
         assert!((a - b).abs() <= 0.001, "{p:?}");
@@ -213,7 +230,10 @@ fn drive_fault_stops_the_move_with_its_emcy_and_fault_reset_recovers() {
         after: Duration::from_millis(300),
         emcy_code: 0x8611,
     });
-    d.table().unwrap().start_move([400.0, 280.0, 200.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([400.0, 280.0, 200.0], T)
+        .unwrap();
     let e = d.table().unwrap().wait_reached(T).unwrap_err();
     match &e {
         DeviceError::DriveFault {
@@ -230,7 +250,10 @@ fn drive_fault_stops_the_move_with_its_emcy_and_fault_reset_recovers() {
     }
     assert!(!e.is_retryable());
     d.table().unwrap().fault_reset(T).unwrap();
-    d.table().unwrap().start_move([400.0, 280.0, 200.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([400.0, 280.0, 200.0], T)
+        .unwrap();
     let p = d.table().unwrap().wait_reached(T).unwrap();
     assert!((p[2] - 200.0).abs() < 0.001);
 }
@@ -241,14 +264,24 @@ fn a_silent_drive_is_reported_after_three_heartbeat_periods_and_sdo_timeouts_fir
     let mut d = devices(&rig);
     let faults = d.sim.clone().unwrap().table.unwrap();
     d.table().unwrap().enable(T).unwrap();
-    d.table().unwrap().start_move([400.0, 280.0, 10.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([400.0, 280.0, 10.0], T)
+        .unwrap();
     d.table().unwrap().wait_reached(T).unwrap();
     d.clock.sleep(Duration::from_millis(250));
-    d.table().unwrap().start_move([400.0, 280.0, 11.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([400.0, 280.0, 11.0], T)
+        .unwrap();
     d.table().unwrap().wait_reached(T).unwrap();
     faults.lock().unwrap().silent_heartbeat[1] = true;
     d.clock.sleep(Duration::from_millis(400));
-    let e = d.table().unwrap().start_move([400.0, 280.0, 12.0], T).unwrap_err();
+    let e = d
+        .table()
+        .unwrap()
+        .start_move([400.0, 280.0, 12.0], T)
+        .unwrap_err();
     match e {
         DeviceError::HeartbeatLost {
             axis,
@@ -319,7 +352,11 @@ fn contact_is_measured_within_the_overshoot_rule() {
         .start_move([centre_xy[0], centre_xy[1], zc - 1.0], T)
         .unwrap();
     d.table().unwrap().wait_reached(T).unwrap();
-    let v = approach_speed(d.panel().unwrap().latency(), d.table().unwrap().latency(), 0.005);
+    let v = approach_speed(
+        d.panel().unwrap().latency(),
+        d.table().unwrap().latency(),
+        0.005,
+    );
     let (table, panel) = d.table_and_panel().unwrap();
     let c = measure_contact(
         table,
@@ -382,7 +419,10 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
     let xy = [table_at_tip.x, table_at_tip.y];
     let zc = tip.z - tp.table_to_world_mm.z;
     d.table().unwrap().enable(T).unwrap();
-    d.table().unwrap().start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([xy[0], xy[1], zc - 0.5], T)
+        .unwrap();
     d.table().unwrap().wait_reached(T).unwrap();
     pf.lock().unwrap().miss_next_touch = true;
     let (table, panel) = d.table_and_panel().unwrap();
@@ -403,7 +443,10 @@ fn a_missed_touch_is_a_typed_error_and_bad_packets_are_dropped() {
     // the next valid packet is the measurement.
     d.table().unwrap().begin_pass();
     d.table().unwrap().set_speed(100.0, T).unwrap();
-    d.table().unwrap().start_move([xy[0], xy[1], zc - 0.5], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([xy[0], xy[1], zc - 0.5], T)
+        .unwrap();
     d.table().unwrap().wait_reached(T).unwrap();
     {
         let mut f = pf.lock().unwrap();
@@ -438,7 +481,10 @@ fn the_rig_file_backend_opens_the_simulated_devices_it_names() {
     assert!(d.sim.is_some());
     d.arm.home(T).unwrap();
     d.table().unwrap().enable(T).unwrap();
-    assert_eq!(d.panel().unwrap().stats(), rigcal::devices::PanelStats::default());
+    assert_eq!(
+        d.panel().unwrap().stats(),
+        rigcal::devices::PanelStats::default()
+    );
 }
 
 #[test]
@@ -478,7 +524,10 @@ fn waiting_for_the_table_times_out_with_target_and_position() {
     let rig = rig();
     let mut d = devices(&rig);
     d.table().unwrap().enable(T).unwrap();
-    d.table().unwrap().start_move([400.0, 280.0, 500.0], T).unwrap();
+    d.table()
+        .unwrap()
+        .start_move([400.0, 280.0, 500.0], T)
+        .unwrap();
     let t0 = d.clock.now();
     let e = d
         .table()

@@ -12,8 +12,8 @@ use rand::{Rng, SeedableRng};
 use rigcal::devices::contact::{approach_speed, measure_contact};
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::{
-    InstrumentDevices,
-    open_devices, Arm, ArmPose, ArmStatus, Backend, DeviceError, RigDevices, SimSetup, Table,
+    open_devices, Arm, ArmPose, ArmStatus, Backend, DeviceError, InstrumentDevices, RigDevices,
+    SimSetup, Table,
 };
 use rigcal::kinematics::{JointSpec, Robot};
 use rigcal::recording::{Recording, Status};
@@ -72,7 +72,11 @@ fn a_contact_through_drivers_and_emulators_agrees_with_the_world() {
             .start_move([xy[0], xy[1], p.table_mm[2] - 3.0], T)
             .unwrap();
         d.table().unwrap().wait_reached(T).unwrap();
-        let v = approach_speed(d.panel().unwrap().latency(), d.table().unwrap().latency(), 0.005);
+        let v = approach_speed(
+            d.panel().unwrap().latency(),
+            d.table().unwrap().latency(),
+            0.005,
+        );
         let (table, panel) = d.table_and_panel().unwrap();
         let c = measure_contact(
             table,
@@ -637,4 +641,64 @@ proptest! {
             prev = Some((region.clone(), z));
         }
     }
+}
+
+/// A session on the ideal-instrument rig (the papers' simulations): the same drivers and arm
+/// emulator, a simulated point sensor instead of the table and panel, no registration step.
+#[test]
+fn a_dry_run_on_the_ideal_rig_reads_the_true_tip_at_every_commanded_pose() {
+    let sc = Scenario::load(Path::new("sim/paper-sim.toml"), None).unwrap();
+    let rig = sc.rig.clone();
+    assert!(matches!(rig.instrument, Instrument::Ideal));
+    let pts = plan(
+        &rig,
+        &PlanOptions {
+            points: 40,
+            regions: 4,
+            reference_every: 10,
+            seed: 3,
+            ..PlanOptions::default()
+        },
+    )
+    .unwrap()
+    .points;
+    let dir = tempfile::tempdir().unwrap();
+    let (d, world) = sim_devices(&sc);
+    assert!(!d.has_table());
+    let report = run_session(
+        &rig,
+        d,
+        Some(world),
+        &pts,
+        options(dir.path()),
+        &Progress::Quiet,
+    )
+    .unwrap();
+    assert_eq!(report.ok, pts.len(), "{:?}", report.skipped);
+    assert_eq!(report.registration_rms_mm, None);
+    let rec = read(dir.path(), &rig);
+    assert_eq!(
+        rec.rows.iter().filter(|m| m.status == Status::Via).count(),
+        pts.len(),
+        "one via row per point, no registration rows"
+    );
+    // The paper scenario is static and noise-free: each reading is the true tip at the joints
+    // the controller was commanded to (0.1° resolution), which the row records.
+    let truth = sc.world();
+    for (m, p) in rec.measured() {
+        let want = truth.true_position(&m.q);
+        assert!((want - p).norm() < 1e-3, "{want} vs {p} at seq {}", m.seq);
+        assert!(m.table.is_none());
+    }
+    // The plan's last columns are the nominal tip, not a table position.
+    let plan_text = {
+        let p = dir.path().join("plan.csv");
+        rigcal::session::write_plan(&p, &rig, &pts).unwrap();
+        std::fs::read_to_string(p).unwrap()
+    };
+    assert!(plan_text
+        .lines()
+        .next()
+        .unwrap()
+        .ends_with("tip_x_mm,tip_y_mm,tip_z_mm"));
 }

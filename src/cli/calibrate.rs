@@ -269,11 +269,7 @@ fn print_summary(
 }
 
 /// The scenario's world as the division's measurer; the scenario must be for this rig.
-fn planning_world(
-    rig: &Rig,
-    scenario: &std::path::Path,
-    _seed: u64,
-) -> Result<crate::cli::demo::WorldMeasurer> {
+fn planning_world(rig: &Rig, scenario: &std::path::Path, _seed: u64) -> Result<WorldMeasurer> {
     let sc = crate::world::Scenario::load(scenario, None)?;
     if sc.rig.name != rig.name {
         bail!(
@@ -284,7 +280,7 @@ fn planning_world(
             sc.rig_path.display()
         );
     }
-    Ok(crate::cli::demo::WorldMeasurer {
+    Ok(WorldMeasurer {
         world: sc.world(),
         seq: 0,
         t_s: 0.0,
@@ -309,4 +305,21 @@ fn unmeasurable_point(space: Space, text: &str) -> Result<[f64; 3]> {
         Space::Joint => [p[0].to_radians(), p[1].to_radians(), p[2].to_radians()],
         Space::Cartesian => [p[0], p[1].to_radians(), p[2].to_radians()],
     })
+}
+
+/// The simulated world as a division's measurer: each call is the next measurement, taken
+/// `step_s` after the previous one, with the world's motion history (backlash, drift).
+pub(crate) struct WorldMeasurer {
+    pub world: crate::world::World,
+    pub seq: u64,
+    pub t_s: f64,
+    pub step_s: f64,
+}
+
+impl crate::division::Measurer for WorldMeasurer {
+    fn measure(&mut self, q: &[f64]) -> Option<nalgebra::Vector3<f64>> {
+        self.seq += 1;
+        self.t_s += self.step_s;
+        self.world.measure_at(q, self.t_s, self.seq, 0).position
+    }
 }

@@ -8,7 +8,7 @@ use crate::report::{
 use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
 use rand::{Rng, SeedableRng};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal evaluate`.
 #[derive(Debug, clap::Args)]
@@ -44,33 +44,48 @@ pub(crate) const TRACED: [&str; 4] = ["theta1", "d1", "a1", "alpha1"];
 pub fn run(a: Args) -> Result<()> {
     anyhow::ensure!(a.points >= 2, "--points must be at least 2");
     let loaded = ModelFile::load(&a.model)?;
+    let paths = build_paths(&loaded.rig, &a)?;
+    evaluate(&a.model, &a.scenario, &paths, a.out.as_deref())?;
+    Ok(())
+}
+
+/// Evaluates every model of the model file at `model` along `paths` in `scenario`'s truth,
+/// printing a table per path and, with `out`, writing plots and a CSV there.
+pub(crate) fn evaluate(
+    model: &Path,
+    scenario: &Path,
+    paths: &[PathSpec],
+    out: Option<&Path>,
+) -> Result<Vec<Vec<PathResult>>> {
+    let loaded = ModelFile::load(model)?;
     let rig = &loaded.rig;
-    let scenario = Scenario::load(&a.scenario, None)?;
+    let scenario_path = scenario;
+    let scenario = Scenario::load(scenario_path, None)?;
     if scenario.rig.name != rig.name {
         bail!(
             "the model is for rig `{}` but scenario {} is for `{}`",
             rig.name,
-            a.scenario.display(),
+            scenario_path.display(),
             scenario.rig.name
         );
     }
     let world = scenario.world();
     let truth = |q: &[f64]| world.true_position(q);
-    let mut models = loaded.file.error_models(rig, &a.model)?;
+    let mut models = loaded.file.error_models(rig, model)?;
     models.reverse();
     let refs: Vec<(String, &dyn crate::kinematics::ErrorModel)> = models
         .iter()
         .map(|(n, m)| (n.clone(), m.as_ref()))
         .collect();
-    let paths = build_paths(rig, &a)?;
-    if let Some(dir) = &a.out {
+    if let Some(dir) = out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    for path in &paths {
+    let mut all = Vec::with_capacity(paths.len());
+    for path in paths {
         let results = evaluate_path(rig, path, &refs, &truth, &TRACED);
         print_results(path, &results);
-        if let Some(dir) = &a.out {
-            let stem = path.name.replace([' ', '/', ':', ','], "_");
+        if let Some(dir) = out {
+            let stem = path.name.replace([' ', '/', ':', ',', '.'], "_");
             let f = dir.join(format!("{stem}-errors.svg"));
             plot_errors(&f, &format!("position error along {}", path.name), &results)?;
             let units = ["deg", "mm", "mm", "deg"];
@@ -80,31 +95,47 @@ pub fn run(a: Args) -> Result<()> {
                 .filter(|r| !r.traces.is_empty())
                 .cloned()
                 .collect();
-            plot_traces(
-                &g,
-                &format!("CEPs along {}", path.name),
-                &TRACED,
-                &units,
-                &traced,
-            )?;
+            if !traced.is_empty() {
+                plot_traces(
+                    &g,
+                    &format!("CEPs along {}", path.name),
+                    &TRACED,
+                    &units,
+                    &traced,
+                )?;
+            }
             write_csv(&dir.join(format!("{stem}.csv")), &results)?;
-            println!("  plots: {} and {}", f.display(), g.display());
+            println!(
+                "  plots: {}{}",
+                f.display(),
+                if traced.is_empty() {
+                    String::new()
+                } else {
+                    format!(" and {}", g.display())
+                }
+            );
         }
+        all.push(results);
     }
-    Ok(())
+    Ok(all)
+}
+
+/// The paper's Fig. 6 joint path.
+pub(crate) fn fig6(rig: &crate::rig::Rig, points: usize) -> PathSpec {
+    joint_path(
+        rig,
+        "Fig. 6 joint path",
+        &[60.0, 60.0, -35.0],
+        &[125.0, 90.0, -10.0],
+        points,
+    )
 }
 
 fn build_paths(rig: &crate::rig::Rig, a: &Args) -> Result<Vec<PathSpec>> {
     let mut out = Vec::new();
     for p in &a.paths {
         match p.as_str() {
-            "fig6" => out.push(joint_path(
-                rig,
-                "Fig. 6 joint path",
-                &[60.0, 60.0, -35.0],
-                &[125.0, 90.0, -10.0],
-                a.points,
-            )),
+            "fig6" => out.push(fig6(rig, a.points)),
             "fig7" => out.push(spherical_path(
                 rig,
                 "Fig. 7 spherical path",

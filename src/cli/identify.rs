@@ -120,12 +120,6 @@ pub(crate) fn print_fit_summary(r: &FitResult) {
     );
 }
 
-/// Identifies the parameters a recording can separate. With a free measurement frame the
-/// chain's nominal frame starts at the closed-form registration of the nominal arm.
-pub(crate) fn identify(rig: &Rig, rec: &Recording) -> Result<(SerialChain, FitResult)> {
-    identify_at(rig, rec, Level::Full)
-}
-
 /// Identifies at a level. With a free measurement frame the fit starts from the closed-form
 /// registration of the nominal arm, and the frame parameters are returned as absolute values
 /// (the rig's nominal frame is the identity), so the model file stands alone.

@@ -34,8 +34,9 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Simulate an RV-M2 with the paper's geometric errors, identify them, and show the accuracy
-    /// before and after on fresh poses and along the paper's Fig. 6 path.
+    /// The whole job on simulated devices: a dry-run session of the paper's scenario, the
+    /// variable D-H calibration and the Fig. 6/7 evaluation, then a session on the real rig's
+    /// constraints with its identification, evaluation and diagnosis; files and plots in --out.
     Demo(demo::Args),
     /// Which error parameters position measurements can identify for a rig, and why not the rest.
     Observability(observability::Args),
@@ -71,7 +72,28 @@ enum Command {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     init_logging(cli.verbose);
-    let result = match cli.command {
+    match dispatch(cli.command) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Runs a subcommand given as command-line words (without the program name): `rigcal demo`
+/// chains the same commands a user would type.
+pub(crate) fn run_words(words: &[String]) -> anyhow::Result<()> {
+    let cli =
+        Cli::try_parse_from(std::iter::once("rigcal".to_string()).chain(words.iter().cloned()))?;
+    dispatch(cli.command)
+}
+
+fn dispatch(command: Command) -> anyhow::Result<()> {
+    match command {
         Command::Demo(a) => demo::run(a),
         Command::Observability(a) => observability::run(a),
         Command::Identify(a) => identify::run(a),
@@ -86,16 +108,6 @@ pub fn main() -> ExitCode {
         Command::SimDevice(a) => sim_device::run(a),
         Command::Plan(a) => plan::run(a),
         Command::Session(a) => session::run(a),
-    };
-    match result {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e}");
-            for cause in e.chain().skip(1) {
-                eprintln!("  caused by: {cause}");
-            }
-            ExitCode::FAILURE
-        }
     }
 }
 

@@ -7,6 +7,7 @@
 
 use crate::devices::clock::RealClock;
 use crate::devices::{open_devices, Backend, SimSetup};
+use crate::kinematics::Robot;
 use crate::recording::SessionInfo;
 use crate::rig::Rig;
 use crate::session::{
@@ -47,9 +48,16 @@ pub struct Args {
     /// Poses of the registration step.
     #[arg(long, default_value_t = 12)]
     registration_points: usize,
-    /// Seed (plan and registration poses); default the scenario's, else 1.
+    /// Reuse the registration of this earlier session directory (same rig set-up) instead of
+    /// registering again, so both recordings share one frame (e.g. to check a model on a path).
+    #[arg(long, value_name = "DIR")]
+    registration_from: Option<PathBuf>,
+    /// Seed of the plan and the registration poses; default the scenario's seed, else 1.
     #[arg(long)]
     seed: Option<u64>,
+    /// Overrides the scenario's own seed (its random errors and noise: another simulated arm).
+    #[arg(long, requires = "sim")]
+    sim_seed: Option<u64>,
     /// Run the emulators on real time instead of the virtual clock.
     #[arg(long)]
     real_time: bool,
@@ -61,7 +69,7 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
     let scenario = match &a.sim {
-        Some(p) => Some(Scenario::load(p, a.seed)?),
+        Some(p) => Some(Scenario::load(p, a.sim_seed)?),
         None => None,
     };
     if let Some(s) = &scenario {
@@ -130,6 +138,17 @@ pub fn run(a: Args) -> Result<()> {
     let mut opts = SessionOptions::new(&a.out);
     opts.resume = a.resume;
     opts.registration_points = a.registration_points;
+    if let Some(dir) = &a.registration_from {
+        let rec = crate::recording::Recording::read(dir, rig.chain.joints())
+            .with_context(|| format!("reading the session {}", dir.display()))?;
+        let reg = rec.session.and_then(|s| s.registration);
+        opts.registration = Some(reg.with_context(|| {
+            format!(
+                "{}: its session.toml holds no [registration]",
+                dir.display()
+            )
+        })?);
+    }
     opts.seed = seed;
     opts.fsync = a.fsync || !virtual_clock;
     opts.info = SessionInfo {

@@ -13,6 +13,7 @@ use crate::devices::clock::{RealClock, SharedClock, VirtualClock};
 use crate::devices::config::{DevicesConfig, TableConfig};
 use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
 use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
+use crate::devices::emulators::sensor::SimPointSensor;
 use crate::devices::emulators::table::{TableEmulator, TableFaultHandle};
 use crate::devices::emulators::{
     NominalPhysics, PolledCan, PolledSerial, SharedPhysics, SharedTable, TableTruth,
@@ -20,7 +21,6 @@ use crate::devices::emulators::{
 use crate::devices::panel_penmount::PenMountPanel;
 use crate::devices::safety::{LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
-use crate::devices::emulators::sensor::SimPointSensor;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
 use crate::rig::{Instrument, Rig, TablePanel};
 use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};

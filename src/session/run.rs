@@ -113,6 +113,9 @@ pub struct SessionOptions {
     pub fsync: bool,
     /// What goes into session.toml besides the registration.
     pub info: SessionInfo,
+    /// A registration to reuse (another session's, same rig set-up) instead of the
+    /// registration step: both recordings are then in one frame.
+    pub registration: Option<RegistrationInfo>,
 }
 
 impl SessionOptions {
@@ -128,6 +131,7 @@ impl SessionOptions {
             seed: 1,
             fsync: true,
             info: SessionInfo::default(),
+            registration: None,
         }
     }
 }
@@ -637,7 +641,7 @@ impl Runner<'_> {
         let signs = approach_signs(self.rig, point);
         let via = via_pose(self.rig, q, &signs, c.via_delta);
         let zmax = self.travel_z;
-        let start = [nominal[0], nominal[1], (nominal[2] - c.margin_mm).max(0.0)];
+        let mut start = [nominal[0], nominal[1], (nominal[2] - c.margin_mm).max(0.0)];
         let end_z = (nominal[2] + c.margin_mm).min(zmax);
         self.pass(region);
         // 1. Via pose, the table to the approach start — or lower, when the via pose (a small
@@ -667,6 +671,7 @@ impl Runner<'_> {
         let mut attempt = 0u32;
         let mut commanded: Option<Vec<f64>> = None;
         loop {
+            let mut pin_on_panel = false;
             let step: Result<Contact, DeviceError> = (|| {
                 if commanded.is_none() {
                     self.set_draws(self.seq, attempt);
@@ -674,8 +679,19 @@ impl Runner<'_> {
                     self.arm_q = Some(done.clone());
                     commanded = Some(done);
                 }
-                // Back to the approach start (a retry) — a small descent within the pass.
-                let here = self.table_at.unwrap_or(start);
+                // Back to the approach start (a retry): from wherever the table was halted.
+                let here = match self.table_at {
+                    Some(p) => p,
+                    None => self.dev.table()?.position(IO)?,
+                };
+                if let Some(top) = self.pass_top {
+                    if start[2] < top - self.retract_mm {
+                        // Down and away from the pin: a new pass.
+                        self.dev.table()?.begin_pass();
+                        self.pass_top = None;
+                        self.report.extra_passes += 1;
+                    }
+                }
                 if (here[2] - start[2]).abs() > 1e-3 || (here[0] - start[0]).abs() > 1e-3 {
                     self.dev.table()?.set_speed(self.travel_mm_s, IO)?;
                     self.start_move(start)?;
@@ -697,6 +713,7 @@ impl Runner<'_> {
                 self.pass_top = Some(self.pass_top.map_or(end_z, |z| z.max(end_z)));
                 let first = first?;
                 if first.table_mm[2] <= start[2] + 0.01 {
+                    pin_on_panel = true;
                     return Err(bad_touch(format!(
                         "touch at the approach start (z {:.3} mm): the pin was already on the panel",
                         first.table_mm[2]
@@ -748,6 +765,11 @@ impl Runner<'_> {
                     if arm_lost_track(&e) || matches!(e, DeviceError::ArmErrorMode { .. }) {
                         commanded = None;
                     }
+                    if pin_on_panel {
+                        // The pin is lower than the nominal kinematics say, by more than the
+                        // margin: start the next attempt lower, never from the same place.
+                        start[2] = (start[2] - c.margin_mm).max(0.0);
+                    }
                     if let Some(out) = self.handle(&e, &mut attempt, "measuring")? {
                         return Ok((commanded.unwrap_or_else(|| q.to_vec()), out));
                     }
@@ -797,6 +819,18 @@ impl Runner<'_> {
             .clock
             .sleep(self.opts.backoff * 2u32.saturating_pow(*attempt - 1));
         Ok(None)
+    }
+
+    /// The table position under the nominal tip at `q` through the session's registration (the
+    /// plan's targets use the rig file's nominal table pose, which the registration corrects).
+    fn registered_table_target(&self, q: &[f64]) -> Option<[f64; 3]> {
+        self.registration_info?;
+        let tip = self
+            .rig
+            .chain
+            .position(q, &ErrorParams::zeros(self.rig.chain.layout()));
+        let t = self.registration.inverse() * nalgebra::Point3::from(tip);
+        Some([t.x, t.y, t.z])
     }
 
     /// Measures at `q` with a point sensor: via move, final move, one reading, retries.
@@ -859,7 +893,8 @@ impl Runner<'_> {
             return self.write(m);
         }
         let (q, out) = if self.dev.has_table() {
-            self.measure(p.point, &p.region, &p.q, p.table_mm)?
+            let target = self.registered_table_target(&p.q).unwrap_or(p.table_mm);
+            self.measure(p.point, &p.region, &p.q, target)?
         } else {
             self.sight(p.point, &p.region, &p.q)?
         };
@@ -890,6 +925,11 @@ impl Runner<'_> {
     /// Measures random reachable poses with the nominal kinematics and fits the table-to-world
     /// transform (conventions §1); writes it to session.toml.
     fn registration_step(&mut self) -> Result<(), SessionError> {
+        if let Some(info) = self.opts.registration {
+            self.registration = crate::rig::pose_from_xyz_rpy(info.translation_mm, info.rpy_deg);
+            self.registration_info = Some(info);
+            return self.write_info();
+        }
         if !self.dev.has_table() {
             // A point sensor's frame is the world (ideal instrument) or free, fitted with the
             // kinematics (a tracker, conventions §1): nothing to register before the session.

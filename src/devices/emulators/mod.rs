@@ -355,8 +355,13 @@ pub struct Profile {
 impl Profile {
     /// Standing still at `p`.
     pub fn still(p: f64) -> Self {
+        Profile::still_from(Duration::ZERO, p)
+    }
+
+    /// Standing at `p` from `t0` on.
+    pub fn still_from(t0: Duration, p: f64) -> Self {
         Profile {
-            t0: Duration::ZERO,
+            t0,
             from: p,
             to: p,
             v: 1.0,
@@ -449,11 +454,20 @@ impl Profile {
 
 /// The table's true axis motion, shared by the table emulator (which writes it) and the panel
 /// emulator (which reads where the panel is). Table frame, mm.
+///
+/// The panel emulator evaluates contacts lazily, for moments that may lie before the table's
+/// latest move began, so each axis keeps its recent profiles: the position at `t` comes from the
+/// last profile started at or before `t`.
 #[derive(Debug, Clone)]
 pub struct TableTruth {
-    /// Per axis x, y, z.
+    /// Per axis x, y, z: the current profile.
     pub axes: [Profile; 3],
+    /// Per axis, earlier profiles (oldest first), at most [`HISTORY`] of them.
+    past: [VecDeque<Profile>; 3],
 }
+
+/// Motions an emulated device remembers for lazily evaluated past moments.
+pub const HISTORY: usize = 64;
 
 impl TableTruth {
     /// Standing at `p`.
@@ -464,16 +478,37 @@ impl TableTruth {
                 Profile::still(p[1]),
                 Profile::still(p[2]),
             ],
+            past: Default::default(),
         }
+    }
+
+    /// Starts `profile` on `axis` (0 x, 1 y, 2 z), keeping the current one for past moments.
+    pub fn start(&mut self, axis: usize, profile: Profile) {
+        if let (Some(slot), Some(past)) = (self.axes.get_mut(axis), self.past.get_mut(axis)) {
+            past.push_back(std::mem::replace(slot, profile));
+            if past.len() > HISTORY {
+                past.pop_front();
+            }
+        }
+    }
+
+    fn axis_at(&self, axis: usize, t: Duration) -> f64 {
+        let current = &self.axes[axis];
+        if t >= current.t0 {
+            return current.position(t);
+        }
+        self.past[axis]
+            .iter()
+            .rev()
+            .find(|p| p.t0 <= t)
+            .or(self.past[axis].front())
+            .unwrap_or(current)
+            .position(t)
     }
 
     /// The table position at `t` (mm).
     pub fn position(&self, t: Duration) -> Vector3<f64> {
-        Vector3::new(
-            self.axes[0].position(t),
-            self.axes[1].position(t),
-            self.axes[2].position(t),
-        )
+        Vector3::new(self.axis_at(0, t), self.axis_at(1, t), self.axis_at(2, t))
     }
 }
 

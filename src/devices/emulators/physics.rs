@@ -23,6 +23,34 @@ pub struct PinState {
     pub direction: Vector3<f64>,
 }
 
+/// The pin's recent states with the times they were reached. The panel emulator evaluates
+/// contacts lazily, possibly for moments before the latest arm command arrived, so `at(t)` is
+/// the state of the last command arrived by `t` (before the first arrival: the first state).
+#[derive(Debug, Clone, Default)]
+pub struct PinTimeline {
+    states: std::collections::VecDeque<(Duration, PinState)>,
+}
+
+impl PinTimeline {
+    /// The arm reaches `pin` at `arrive` (commands arrive in time order).
+    pub fn push(&mut self, arrive: Duration, pin: PinState) {
+        self.states.push_back((arrive, pin));
+        if self.states.len() > super::HISTORY {
+            self.states.pop_front();
+        }
+    }
+
+    /// The pin at `t`; `None` before any command.
+    pub fn at(&self, t: Duration) -> Option<PinState> {
+        self.states
+            .iter()
+            .rev()
+            .find(|(arrive, _)| *arrive <= t)
+            .or(self.states.front())
+            .map(|(_, p)| *p)
+    }
+}
+
 /// The simulated world as the emulators see it.
 pub trait RigPhysics: Send {
     /// The arm was commanded to joint values `q` (rad, as the controller executes them); the
@@ -56,8 +84,7 @@ pub struct NominalPhysics {
     truth: ErrorParams,
     table_to_world: Vector3<f64>,
     pin_axis: Vector3<f64>,
-    /// (previous q, q, arrival time)
-    arm: Option<(Vec<f64>, Vec<f64>, Duration)>,
+    pins: PinTimeline,
 }
 
 impl NominalPhysics {
@@ -72,7 +99,7 @@ impl NominalPhysics {
             truth,
             table_to_world,
             pin_axis,
-            arm: None,
+            pins: PinTimeline::default(),
         }
     }
 
@@ -89,25 +116,19 @@ impl NominalPhysics {
 
 impl RigPhysics for NominalPhysics {
     fn arm_commanded(&mut self, q: &[f64], t_arrive: Duration) {
-        let prev = self
-            .arm
-            .as_ref()
-            .map(|(_, q, _)| q.clone())
-            .unwrap_or_else(|| q.to_vec());
-        self.arm = Some((prev, q.to_vec(), t_arrive));
+        if q.len() != self.chain.dof() {
+            return;
+        }
+        let pose = self.chain.tool_pose(q, &self.truth);
+        let pin = PinState {
+            tip_mm: self.chain.position(q, &self.truth),
+            direction: pose.rotation * self.pin_axis,
+        };
+        self.pins.push(t_arrive, pin);
     }
 
     fn pin(&self, t: Duration) -> Option<PinState> {
-        let (prev, q, t_arrive) = self.arm.as_ref()?;
-        let q = if t >= *t_arrive { q } else { prev };
-        if q.len() != self.chain.dof() {
-            return None;
-        }
-        let pose = self.chain.tool_pose(q, &self.truth);
-        Some(PinState {
-            tip_mm: self.chain.position(q, &self.truth),
-            direction: pose.rotation * self.pin_axis,
-        })
+        self.pins.at(t)
     }
 
     fn panel_centre_world(&self, table_mm: Vector3<f64>) -> Vector3<f64> {

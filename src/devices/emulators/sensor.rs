@@ -59,11 +59,11 @@ impl PointSensor for SimPointSensor {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::sync::Arc;
     use crate::devices::clock::VirtualClock;
     use crate::devices::emulators::physics::NominalPhysics;
     use crate::kinematics::{ErrorParams, Robot};
     use crate::rig::Rig;
+    use std::sync::Arc;
 
     #[test]
     fn reads_the_nominal_tip_after_its_latency() {
@@ -86,6 +86,9 @@ mod tests {
             .chain
             .position(&q, &ErrorParams::zeros(rig.chain.layout()));
         assert!((nalgebra::Vector3::from(p) - want).norm() < 1e-9);
-        assert!(s.read(Duration::from_millis(10)).is_err(), "timeout below the latency");
+        assert!(
+            s.read(Duration::from_millis(10)).is_err(),
+            "timeout below the latency"
+        );
     }
 }

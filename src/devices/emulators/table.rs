@@ -176,9 +176,7 @@ impl TableEmulator {
             }
             let axis = self.drives[k].axis;
             let p = self.position_mm(axis, at);
-            if let Some(slot) = lock(&self.truth).axes.get_mut(axis) {
-                *slot = Profile::still(p);
-            }
+            lock(&self.truth).start(axis, Profile::still_from(at, p));
             let d = &mut self.drives[k];
             d.fault_at = None;
             d.state = DriveState::Fault;
@@ -258,9 +256,7 @@ impl TableEmulator {
             }
         }
         if let Some(p) = start_profile {
-            if let Some(slot) = lock(&self.truth).axes.get_mut(axis) {
-                *slot = p;
-            }
+            lock(&self.truth).start(axis, p);
         }
         if let Some(node) = emcy_reset {
             let e = Emergency {

@@ -14,7 +14,7 @@ use std::time::Duration;
 use nalgebra::Vector3;
 
 use crate::devices::clock::VirtualClock;
-use crate::devices::emulators::physics::{PinState, RigPhysics, SharedPhysics};
+use crate::devices::emulators::physics::{PinState, PinTimeline, RigPhysics, SharedPhysics};
 use crate::devices::factory::SimSetup;
 use crate::rig::Instrument;
 use crate::world::{MotionHistory, Scenario, World};
@@ -24,8 +24,7 @@ use crate::world::{MotionHistory, Scenario, World};
 pub struct WorldPhysics {
     world: World,
     pin_axis: Vector3<f64>,
-    /// (pin before the last command, pin after it, arrival time of the last command)
-    pins: Option<(PinState, PinState, Duration)>,
+    pins: PinTimeline,
     seq: u64,
     attempt: u32,
     time_offset_s: f64,
@@ -44,7 +43,7 @@ impl WorldPhysics {
         WorldPhysics {
             world,
             pin_axis,
-            pins: None,
+            pins: PinTimeline::default(),
             seq: 0,
             attempt: 0,
             time_offset_s: 0.0,
@@ -93,13 +92,11 @@ impl RigPhysics for WorldPhysics {
             tip_mm: self.world.scattered_tip(&arm, &draws),
             direction: arm.tool.rotation * self.pin_axis,
         };
-        let before = self.pins.map_or(pin, |(_, after, _)| after);
-        self.pins = Some((before, pin, t_arrive));
+        self.pins.push(t_arrive, pin);
     }
 
     fn pin(&self, t: Duration) -> Option<PinState> {
-        let (before, after, arrive) = self.pins?;
-        Some(if t >= arrive { after } else { before })
+        self.pins.at(t)
     }
 
     fn panel_centre_world(&self, table_mm: Vector3<f64>) -> Vector3<f64> {
