@@ -35,27 +35,78 @@ fn observability_prints_rank_15_and_the_papers_basis() {
     assert!(out.contains("rank of [M]: 23 of 35"), "{out}");
 }
 
-#[test]
-fn demo_identifies_and_compensates() {
-    let dir = tempfile::tempdir().unwrap();
-    let (ok, out, err) = rigcal(&["demo", "--out", s(dir.path())]);
-    assert!(ok, "{err}");
-    assert!(dir.path().join("recording/measurements.csv").exists());
-    assert!(dir.path().join("model.json").exists());
-    let rms_after: f64 = out
+/// The mean and max of `model` on the summary line after `path` ("name mean / max").
+fn summary_figure(summary: &str, path: &str, model: &str) -> (f64, f64) {
+    let line = summary
         .lines()
-        .find(|l| l.contains("identified model"))
-        .and_then(|l| l.split("RMS").nth(1))
-        .and_then(|r| r.split_whitespace().next())
-        .and_then(|v| v.parse().ok())
-        .unwrap();
-    assert!(rms_after < 0.05, "{out}");
+        .skip_while(|l| !l.contains(path))
+        .nth(1)
+        .unwrap_or_else(|| panic!("no {path} in {summary}"));
+    let rest = line
+        .split(&format!("{model} "))
+        .nth(1)
+        .unwrap_or_else(|| panic!("no {model} in {line}"));
+    let v: Vec<f64> = rest
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .take(2)
+        .collect();
+    (v[0], v[1])
+}
+
+#[test]
+fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ok, out, err) = rigcal(&[
+        "demo",
+        "--out",
+        s(dir.path()),
+        "--points",
+        "600",
+        "--rig-points",
+        "120",
+    ]);
+    assert!(ok, "{err}");
+    for f in [
+        "paper/measurements.csv",
+        "paper/journal.json",
+        "paper-model.json",
+        "paper-plots/Fig__6_joint_path-errors.svg",
+        "rig/measurements.csv",
+        "rig/plan.dropped.csv",
+        "rig-model.json",
+        "rig-diagnosis.json",
+        "rig-path-compensated/measurements.csv",
+        "summary.txt",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f} missing; output:\n{out}");
+    }
+    let summary = std::fs::read_to_string(dir.path().join("summary.txt")).unwrap();
+    let (uncal_mean, _) = summary_figure(&summary, "Fig. 6 joint path", "uncalibrated");
+    let (_, fcmac_max) = summary_figure(&summary, "Fig. 6 joint path", "fcmac");
+    let (_, conventional_max) = summary_figure(&summary, "Fig. 6 joint path", "conventional");
+    assert!(uncal_mean > 0.5, "{summary}");
+    assert!(fcmac_max < 0.02 && fcmac_max < conventional_max, "{summary}");
+    // The rig path: every point measured twice; the resolution floor is reported.
+    assert!(out.contains("0 point(s) not measured"), "{out}");
+    assert!(out.contains("command resolution alone"), "{out}");
+    assert!(out.contains("dropped") && out.contains("pin angle to the panel"), "{out}");
 }
 
 #[test]
 fn identify_then_compensate_from_files() {
     let dir = tempfile::tempdir().unwrap();
-    let (ok, _, err) = rigcal(&["demo", "--out", s(dir.path()), "--seed", "3"]);
+    let (ok, _, err) = rigcal(&[
+        "session",
+        "--rig",
+        "rigs/rv-m2-ideal.toml",
+        "--sim",
+        "sim/paper-sim-noise.toml",
+        "--points",
+        "100",
+        "--out",
+        s(&dir.path().join("recording")),
+    ]);
     assert!(ok, "{err}");
     let model = dir.path().join("m.json");
     let (ok, out, err) = rigcal(&[
