@@ -33,6 +33,20 @@ const LOST_MOTION_DEG: f64 = 0.5;
 /// A tracker world on the synthetic robot: random geometric errors (0.5 mm / 0.05° on the
 /// identifiable kinematic parameters), an unknown tracker frame, optional backlash on joint 6.
 fn world(rig: &Rig, seed: u64, backlash: bool) -> World {
+    let effects: Vec<Arc<dyn Effect>> = if backlash {
+        vec![Arc::new(Backlash {
+            joint: BACKLASH_JOINT,
+            lost_motion: LOST_MOTION_DEG.to_radians(),
+        })]
+    } else {
+        Vec::new()
+    };
+    world_with(rig, seed, effects, true)
+}
+
+/// The same with any effects; `rotate` false keeps the tracker axes parallel to the robot base
+/// (the world's compliance pulls along its own world −z).
+fn world_with(rig: &Rig, seed: u64, effects: Vec<Arc<dyn Effect>>, rotate: bool) -> World {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let design = random_poses(rig.chain.joints(), rig.held(), 80, &mut rng);
     let ident = analyse(&rig.chain, &design, &candidate_order(rig));
@@ -49,19 +63,15 @@ fn world(rig: &Rig, seed: u64, backlash: bool) -> World {
         };
         truth.set(i, if rng.gen_bool(0.5) { size } else { -size });
     }
-    let angle = rng.gen_range(0.5..std::f64::consts::PI);
+    let angle = if rotate {
+        rng.gen_range(0.5..std::f64::consts::PI)
+    } else {
+        0.0
+    };
     let frame = Isometry3::from_parts(
         Translation3::new(1800.0, -400.0, 900.0),
         UnitQuaternion::from_axis_angle(&Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8)), angle),
     );
-    let effects: Vec<Arc<dyn Effect>> = if backlash {
-        vec![Arc::new(Backlash {
-            joint: BACKLASH_JOINT,
-            lost_motion: LOST_MOTION_DEG.to_radians(),
-        })]
-    } else {
-        Vec::new()
-    };
     World::with_effects(
         rig.chain.with_frame(frame),
         truth,
@@ -228,4 +238,79 @@ fn no_effect_hidden_claims_nothing_on_tracker_recordings() {
             "seed {seed}:\n{text}"
         );
     }
+}
+
+#[test]
+fn urdf_link_masses_give_joint_compliance_in_deg_per_nm() {
+    use rigcal::world::{JointCompliance, PointMass};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (rig, rig_path) = common::synthetic8::rig_in(dir.path());
+    // The rig's link masses sit where the URDF puts them, at any joint values.
+    let e = ErrorParams::zeros(rig.chain.layout());
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    let links = ["l1", "l2", "l3", "l4", "l5", "l6", "l7", "l8"];
+    for q in random_poses(rig.chain.joints(), rig.held(), 20, &mut rng) {
+        for (k, l) in links.iter().enumerate() {
+            let mut parts = vec![common::synthetic8::urdf_link(&q, l)];
+            if k == 7 {
+                parts.push(common::synthetic8::urdf_link(&q, "marker"));
+            }
+            let kg = |name: &str| {
+                common::synthetic8::LINKS
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .and_then(|(_, m)| *m)
+                    .map_or(0.0, |m| m.0)
+            };
+            let names: Vec<&str> = if k == 7 { vec![l, "marker"] } else { vec![l] };
+            let total: f64 = names.iter().map(|n| kg(n)).sum();
+            let centre: Vector3<f64> = names
+                .iter()
+                .zip(&parts)
+                .map(|(n, (_, c))| c.unwrap_or_default() * kg(n))
+                .sum::<Vector3<f64>>()
+                / total;
+            let m = rig.link_masses[k].expect("mass");
+            assert!((m.kg - total).abs() < 1e-9, "link {l}: {} vs {total}", m.kg);
+            let c = rig.chain.frame_before_joint(&q, &e, k + 1)
+                * nalgebra::Point3::from(m.com_mm);
+            assert!((c.coords - centre).norm() < 1e-6, "link {l}: {c} vs {centre}");
+        }
+    }
+    // Joint 3 complies under those masses: 0.005°/(N·m).
+    let deg_per_nm = 0.005;
+    let masses: Vec<PointMass> = rig
+        .link_masses
+        .iter()
+        .enumerate()
+        .filter_map(|(k, m)| {
+            m.map(|m| PointMass {
+                link: k,
+                kg: m.kg,
+                at_mm: m.com_mm,
+            })
+        })
+        .collect();
+    let compliance: Arc<dyn Effect> = Arc::new(JointCompliance {
+        masses,
+        stiffness: vec![(2, 1.0 / f64::to_radians(deg_per_nm))],
+    });
+    let w = world_with(&rig, 7, vec![compliance], false);
+    let (rec, _) = record(&w, &rig, 7);
+    let (held, _) = record(&w, &rig, 107);
+    rec.write_dir(&dir.path().join("rec")).expect("write");
+    held.write_dir(&dir.path().join("held")).expect("write");
+    let (text, v) = diagnose(
+        &rig_path,
+        &dir.path().join("rec"),
+        &dir.path().join("held"),
+        &dir.path().join("c.json"),
+    );
+    eprintln!("{text}");
+    let e = &v["effects"][0];
+    assert_eq!(e["kind"], "joint_compliance", "{text}");
+    assert_eq!(e["joint"], 3, "{text}");
+    let c = e["params"]["deg_per_nm"].as_f64().expect("deg_per_nm");
+    let sc = e["params_sigma"]["deg_per_nm"].as_f64().expect("σ");
+    assert!((c - deg_per_nm).abs() < 4.0 * sc, "{c} ± {sc} vs {deg_per_nm}");
 }

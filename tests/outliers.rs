@@ -7,6 +7,7 @@ use nalgebra::Vector3;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rigcal::identification::{analyse, candidate_order, random_poses};
+use rigcal::kinematics::Robot;
 use rigcal::recording::Recording;
 use rigcal::rig::Rig;
 use rigcal::world::{paper_geometric_errors, World};

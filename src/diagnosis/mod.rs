@@ -230,11 +230,32 @@ impl Data {
     }
 }
 
-/// The candidate library for a joint count: every kind on every joint or axis.
+/// The candidate library for a joint count: every kind on every joint or axis (compliance with
+/// the generic unit-mass model).
 pub fn library(dof: usize) -> Vec<Box<dyn Candidate>> {
+    library_with_masses(dof, None)
+}
+
+/// The candidate library for a rig: compliance uses the rig's link masses where it states them.
+pub fn library_for(rig: &Rig) -> Vec<Box<dyn Candidate>> {
+    let masses = rig
+        .link_masses
+        .iter()
+        .any(Option::is_some)
+        .then(|| std::sync::Arc::new(rig.link_masses.clone()));
+    library_with_masses(rig.chain.joints().len(), masses)
+}
+
+fn library_with_masses(
+    dof: usize,
+    masses: Option<std::sync::Arc<Vec<Option<crate::rig::LinkMass>>>>,
+) -> Vec<Box<dyn Candidate>> {
     let mut v: Vec<Box<dyn Candidate>> = Vec::new();
     for j in 0..dof {
-        v.push(Box::new(compliance::JointCompliance { joint: j }));
+        v.push(Box::new(compliance::JointCompliance {
+            joint: j,
+            masses: masses.clone(),
+        }));
         v.push(Box::new(backlash::Backlash { joint: j }));
         for n in 1..=transmission::MAX_ORDER {
             v.push(Box::new(transmission::TransmissionError {
@@ -533,7 +554,7 @@ const OUTLIER_ROUNDS: usize = 3;
 /// a diagnosed effect explains is never removed, and no removal is silent (the report lists
 /// each with its seq, line and size).
 pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, DiagnoseError> {
-    let lib = library(rig.chain.joints().len());
+    let lib = library_for(rig);
     let mut work = rec.clone();
     let mut removed: Vec<crate::identification::outliers::Outlier> = Vec::new();
     let measured: Vec<u64> = rec

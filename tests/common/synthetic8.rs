@@ -115,12 +115,66 @@ pub const JOINTS: [J; 9] = [
     ),
 ];
 
+/// Links with their `<inertial>` (kg, centre of mass in the link frame, m).
+pub const LINKS: [(&str, Option<(f64, [f64; 3])>); 10] = [
+    ("base", None),
+    ("l1", Some((4.0, [0.0, 0.0, 0.05]))),
+    ("l2", Some((3.0, [0.02, 0.0, 0.05]))),
+    ("l3", Some((3.0, [0.15, 0.0, 0.01]))),
+    ("l4", Some((2.0, [0.12, 0.01, 0.0]))),
+    ("l5", Some((0.8, [0.0, 0.05, 0.0]))),
+    ("l6", Some((0.6, [0.0, 0.0, 0.06]))),
+    ("l7", Some((0.5, [0.0, 0.04, 0.0]))),
+    ("l8", Some((0.4, [0.05, 0.02, 0.0]))),
+    ("marker", Some((0.2, [0.0, 0.0, 0.0]))),
+];
+
+/// World pose (mm) at `q` of the frame of `link` (URDF semantics), and the link's centre of mass
+/// in world coordinates (mm) when it has one.
+pub fn urdf_link(q: &[f64], link: &str) -> (Isometry3<f64>, Option<Vector3<f64>>) {
+    let mut t = Isometry3::identity();
+    let mut k = 0;
+    for (_, ty, _, child, xyz, rpy, axis, _) in JOINTS {
+        t *= Isometry3::from_parts(
+            Translation3::new(xyz[0] * 1000.0, xyz[1] * 1000.0, xyz[2] * 1000.0),
+            UnitQuaternion::from_euler_angles(rpy[0], rpy[1], rpy[2]),
+        );
+        let ax = Unit::new_normalize(Vector3::from(axis));
+        match ty {
+            "revolute" => {
+                t *= UnitQuaternion::from_axis_angle(&ax, q[k]);
+                k += 1;
+            }
+            "prismatic" => {
+                t *= Translation3::from(ax.into_inner() * q[k]);
+                k += 1;
+            }
+            _ => {}
+        }
+        if child == link {
+            let com = LINKS
+                .iter()
+                .find(|(l, _)| *l == link)
+                .and_then(|(_, m)| *m)
+                .map(|(_, c)| (t * nalgebra::Point3::new(c[0] * 1000.0, c[1] * 1000.0, c[2] * 1000.0)).coords);
+            return (t, com);
+        }
+    }
+    (t, None)
+}
+
 pub fn urdf() -> String {
     let mut s = String::from("<?xml version=\"1.0\"?>\n<robot name=\"synthetic8\">\n");
-    for l in [
-        "base", "l1", "l2", "l3", "l4", "l5", "l6", "l7", "l8", "marker",
-    ] {
-        s += &format!("  <link name=\"{l}\"/>\n");
+    for (l, mass) in LINKS {
+        match mass {
+            Some((kg, c)) => {
+                s += &format!(
+                    "  <link name=\"{l}\">\n    <inertial>\n      <origin xyz=\"{} {} {}\" rpy=\"0 0 0\"/>\n      <mass value=\"{kg}\"/>\n      <inertia ixx=\"0.01\" ixy=\"0\" ixz=\"0\" iyy=\"0.01\" iyz=\"0\" izz=\"0.01\"/>\n    </inertial>\n  </link>\n",
+                    c[0], c[1], c[2]
+                );
+            }
+            None => s += &format!("  <link name=\"{l}\"/>\n"),
+        }
     }
     for (name, ty, parent, child, xyz, rpy, axis, lim) in JOINTS {
         s += &format!(
