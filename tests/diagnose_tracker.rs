@@ -272,9 +272,11 @@ fn urdf_link_masses_give_joint_compliance_in_deg_per_nm() {
                 / total;
             let m = rig.link_masses[k].expect("mass");
             assert!((m.kg - total).abs() < 1e-9, "link {l}: {} vs {total}", m.kg);
-            let c = rig.chain.frame_before_joint(&q, &e, k + 1)
-                * nalgebra::Point3::from(m.com_mm);
-            assert!((c.coords - centre).norm() < 1e-6, "link {l}: {c} vs {centre}");
+            let c = rig.chain.frame_before_joint(&q, &e, k + 1) * nalgebra::Point3::from(m.com_mm);
+            assert!(
+                (c.coords - centre).norm() < 1e-6,
+                "link {l}: {c} vs {centre}"
+            );
         }
     }
     // Joint 3 complies under those masses: 0.005°/(N·m).
@@ -312,5 +314,82 @@ fn urdf_link_masses_give_joint_compliance_in_deg_per_nm() {
     assert_eq!(e["joint"], 3, "{text}");
     let c = e["params"]["deg_per_nm"].as_f64().expect("deg_per_nm");
     let sc = e["params_sigma"]["deg_per_nm"].as_f64().expect("σ");
-    assert!((c - deg_per_nm).abs() < 4.0 * sc, "{c} ± {sc} vs {deg_per_nm}");
+    assert!(
+        (c - deg_per_nm).abs() < 4.0 * sc,
+        "{c} ± {sc} vs {deg_per_nm}"
+    );
+}
+
+/// Rates over many seeds (run with `--ignored --nocapture`; `RIGCAL_RATE_SEEDS`, default 50):
+/// backlash on joint 6 named (with the lost motion found and the held-out RMS before → after),
+/// and nulls claiming something, on 50-posture tracker recordings without time.
+#[test]
+#[ignore]
+fn tracker_rates() {
+    use rigcal::diagnosis::{diagnose, Options};
+    let seeds: u64 = std::env::var("RIGCAL_RATE_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(50);
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (rig, _) = common::synthetic8::rig_in(dir.path());
+    let (mut named, mut fell, mut outl) = (0, 0, 0);
+    let (mut b_sum, mut b2_sum, mut before, mut after) = (0.0, 0.0, 0.0, 0.0);
+    for s in 0..seeds {
+        let w = world(&rig, 2000 + s, true);
+        let (rec, _) = record(&w, &rig, 2000 + s);
+        let (held, _) = record(&w, &rig, 3000 + s);
+        let r = diagnose(
+            &rig,
+            &rec,
+            &Options {
+                heldout: vec![held],
+            },
+        )
+        .expect("diagnose");
+        let ok = r.effects.len() == 1
+            && r.effects[0].kind == "backlash"
+            && r.effects[0].joint == Some(6)
+            && !r.unexplained;
+        if ok {
+            named += 1;
+            let b = r.effects[0].params["lost_motion_deg"];
+            b_sum += b;
+            b2_sum += b * b;
+        }
+        let (hb, ha) = (
+            r.fit.heldout_before_rms_mm.unwrap_or(f64::NAN),
+            r.fit.heldout_after_rms_mm.unwrap_or(f64::NAN),
+        );
+        before += hb;
+        after += ha;
+        if ha < hb {
+            fell += 1;
+        }
+        outl += r.outliers.len();
+    }
+    let n = f64::from(named.max(1));
+    let mean = b_sum / n;
+    eprintln!(
+        "tracker backlash 0.5° on joint 6: named alone {named}/{seeds}, lost motion {mean:.4} ± {:.4}° (spread), held-out fell {fell}/{seeds}, mean held-out {:.4} → {:.4} mm, outliers flagged {outl}",
+        (b2_sum / n - mean * mean).max(0.0).sqrt(),
+        before / seeds as f64,
+        after / seeds as f64
+    );
+    let mut claims = 0;
+    let mut null_outliers = 0;
+    let n_null = 2 * seeds;
+    for s in 0..n_null {
+        let w = world(&rig, 5000 + s, false);
+        let (rec, _) = record(&w, &rig, 5000 + s);
+        let r = diagnose(&rig, &rec, &Options::default()).expect("diagnose");
+        if r.mismatch.significant || !r.effects.is_empty() || r.unexplained {
+            claims += 1;
+            eprintln!("null seed {s}:\n{}", r.text());
+        }
+        null_outliers += r.outliers.len();
+    }
+    eprintln!(
+        "tracker nulls: something claimed in {claims}/{n_null}, rows flagged as outliers {null_outliers}"
+    );
 }

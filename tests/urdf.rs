@@ -8,7 +8,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rigcal::kinematics::{ErrorParams, Robot};
 use rigcal::rig::Rig;
-use std::f64::consts::FRAC_PI_2;
 use std::process::Command;
 
 mod common;

@@ -57,7 +57,14 @@ pub fn run(a: Args) -> Result<()> {
             // Link masses: the URDF's centres of mass (base frame, q = 0) moved into each link's
             // end frame of the five-parameter chain, which is rigid with the same link.
             let coms = link_coms(&rig, &chain);
-            let toml = rig_toml(&name, &urdf.display().to_string(), &base, &tip, &chain, &coms);
+            let toml = rig_toml(
+                &name,
+                &urdf.display().to_string(),
+                &base,
+                &tip,
+                &chain,
+                &coms,
+            );
             let rig = Rig::parse(&toml, Some(&out))
                 .context("the generated rig file does not validate (a bug: please report it)")?;
             std::fs::write(&out, &toml)
@@ -102,7 +109,11 @@ fn link_coms(
         .map(|(i, m)| {
             m.map(|(kg, com)| {
                 let end = rig.chain.frame_before_joint(&q0, &e, i + 1);
-                (kg, end.inverse_transform_point(&nalgebra::Point3::from(com)).coords)
+                (
+                    kg,
+                    end.inverse_transform_point(&nalgebra::Point3::from(com))
+                        .coords,
+                )
             })
         })
         .collect()

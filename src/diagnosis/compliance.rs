@@ -23,8 +23,8 @@
 //! reports, radians inside.
 
 use super::{Candidate, Data, Index, Param};
-use crate::rig::LinkMass;
 use crate::kinematics::{JointKind, Robot};
+use crate::rig::LinkMass;
 use nalgebra::{DMatrix, Vector3};
 
 /// Standard gravity (m/s²) along world −z.
@@ -211,7 +211,10 @@ impl Candidate for JointCompliance {
         }
         let k = coef.len();
         let sum: f64 = coef.iter().sum();
-        let var: f64 = (0..k).flat_map(|a| (0..k).map(move |b| (a, b))).map(|(a, b)| cov[(a, b)]).sum();
+        let var: f64 = (0..k)
+            .flat_map(|a| (0..k).map(move |b| (a, b)))
+            .map(|(a, b)| cov[(a, b)])
+            .sum();
         out.push(Param {
             name: times_mass.into(),
             value: unit(sum),

@@ -115,8 +115,11 @@ pub const JOINTS: [J; 9] = [
     ),
 ];
 
-/// Links with their `<inertial>` (kg, centre of mass in the link frame, m).
-pub const LINKS: [(&str, Option<(f64, [f64; 3])>); 10] = [
+/// A link's `<inertial>`: kg and the centre of mass in the link frame (m).
+pub type Inertial = Option<(f64, [f64; 3])>;
+
+/// Links with their `<inertial>`.
+pub const LINKS: [(&str, Inertial); 10] = [
     ("base", None),
     ("l1", Some((4.0, [0.0, 0.0, 0.05]))),
     ("l2", Some((3.0, [0.02, 0.0, 0.05]))),
@@ -156,7 +159,9 @@ pub fn urdf_link(q: &[f64], link: &str) -> (Isometry3<f64>, Option<Vector3<f64>>
                 .iter()
                 .find(|(l, _)| *l == link)
                 .and_then(|(_, m)| *m)
-                .map(|(_, c)| (t * nalgebra::Point3::new(c[0] * 1000.0, c[1] * 1000.0, c[2] * 1000.0)).coords);
+                .map(|(_, c)| {
+                    (t * nalgebra::Point3::new(c[0] * 1000.0, c[1] * 1000.0, c[2] * 1000.0)).coords
+                });
             return (t, com);
         }
     }
