@@ -10,8 +10,18 @@
 //!    direction, time, table coordinate, gravity torque;
 //! 4. name it ([`select`]): candidates from the library (one file each) projected onto the
 //!    orthogonal complement of the geometric Jacobian, forward selection with partial F-tests;
-//! 5. refit with the chosen effects and report RMS before/after on the fitted and held-out data;
-//! 6. test what is left against flexible unnamed bases and report `unexplained` when it matters.
+//! 5. refit with the chosen effects and report RMS before/after on the fitted and held-out data,
+//!    per effect the share the geometry absorbed and the held-out RMS with and without it;
+//! 6. test what is left against flexible unnamed bases and report `unexplained` when it matters;
+//! 7. judge outliers against the final model ([`crate::identification::outliers`]), remove them
+//!    and diagnose again without them, naming each with its seq, line and size.
+//!
+//! Without enough repeated poses (tracker recordings of 40–60 postures) the noise floor is the
+//! residual variance and every term is tested against it; the report says which method it used,
+//! that approach directions came from row order, and that time effects were left out when the
+//! recording has no `t_s`. A quantising instrument (the table rig's panel) adds its known cell
+//! variance to the noise floor, the tests weight each axis by its variance, and the quantisation
+//! sawtooth is projected out with the geometry ([`quantisation_nuisance`]).
 //!
 //! Conventions: residual r = measured − modelled (mm), 3 rows per measurement (x, y, z, world);
 //! joint values in radians (mm for prismatic joints) inside; time in seconds; the "noise floor"
