@@ -183,6 +183,9 @@ pub struct ModelFile {
     pub fitted_from: Provenance,
     /// The model.
     pub model: ModelBody,
+    /// Measurements removed from the fit as outliers (`rigcal identify`), each with its row.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub outliers: Vec<crate::identification::outliers::Outlier>,
 }
 
 /// An error model with its name (`conventional`, `regions`, `fcmac`, `cmac`).
@@ -224,6 +227,7 @@ impl ModelFile {
             },
             fitted_from: provenance,
             model,
+            outliers: Vec::new(),
         }
     }
 

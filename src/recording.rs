@@ -184,6 +184,8 @@ pub struct Recording {
     pub extra_columns: Vec<String>,
     /// The sidecar, when present.
     pub session: Option<SessionInfo>,
+    /// The CSV line (1-based, header = 1) of each row when read from a file; empty otherwise.
+    pub lines: Vec<u64>,
 }
 
 impl Recording {
@@ -375,6 +377,7 @@ fn read_csv<R: std::io::Read>(
         }
         last_seq = Some(m.seq);
         rec.rows.push(m);
+        rec.lines.push(line);
     }
     Ok(rec)
 }

@@ -180,6 +180,21 @@ pub struct Rig {
     pub devices: Option<crate::devices::DevicesConfig>,
     /// The file it came from.
     pub source: RigSource,
+    /// Per joint, the mass of the link it moves and its centre of mass, when the rig file
+    /// states them (`mass_kg`, `com_mm` in `[[robot.joints]]`; `rig from-urdf` fills them from
+    /// the URDF's `<inertial>`).
+    pub link_masses: Vec<Option<LinkMass>>,
+}
+
+/// A link's mass and centre of mass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LinkMass {
+    /// Mass (kg).
+    pub kg: f64,
+    /// Centre of mass in the frame at the end of the link (mm): the frame of the next joint's
+    /// axis ([`SerialChain::frame_before_joint`] of the next joint), the tool frame for the last
+    /// link.
+    pub com_mm: Vector3<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -250,6 +265,13 @@ struct RawJoint {
     beta_deg: f64,
     limits_deg: Option<[f64; 2]>,
     limits_mm: Option<[f64; 2]>,
+    /// Mass of the link this joint moves (kg), optional.
+    #[serde(default)]
+    mass_kg: Option<f64>,
+    /// Its centre of mass in the frame at the end of the link (the next joint's axis frame, or
+    /// the tool frame for the last joint), mm; needs `mass_kg`.
+    #[serde(default)]
+    com_mm: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -397,7 +419,9 @@ impl Validator {
         let tool = self.fixed("robot.tool", &raw.robot.tool)?;
         let mut joints = Vec::new();
         let mut links = Vec::new();
+        let mut link_masses = Vec::new();
         for (i, j) in raw.robot.joints.iter().enumerate() {
+            link_masses.push(self.link_mass(i, j)?);
             let (spec, link) = self.joint(i, j)?;
             if joints.iter().any(|s: &JointSpec| s.name == spec.name) {
                 return Err(self.invalid(
@@ -438,7 +462,29 @@ impl Validator {
                 path: None,
                 text: String::new(),
             },
+            link_masses,
         })
+    }
+
+    fn link_mass(&self, i: usize, j: &RawJoint) -> Result<Option<LinkMass>, RigError> {
+        let key = |k: &str| format!("robot.joints[{i}].{k}");
+        match (j.mass_kg, j.com_mm) {
+            (None, None) => Ok(None),
+            (None, Some(_)) => Err(self.invalid(key("com_mm"), "needs `mass_kg` beside it")),
+            (Some(kg), com) => {
+                if !(kg.is_finite() && kg >= 0.0) {
+                    return Err(self.invalid(key("mass_kg"), "must be a finite mass ≥ 0"));
+                }
+                let c = com.unwrap_or([0.0; 3]);
+                if c.iter().any(|v| !v.is_finite()) {
+                    return Err(self.invalid(key("com_mm"), "must be finite"));
+                }
+                Ok(Some(LinkMass {
+                    kg,
+                    com_mm: Vector3::from(c),
+                }))
+            }
+        }
     }
 
     fn joint(&self, i: usize, j: &RawJoint) -> Result<(JointSpec, LinkParams), RigError> {

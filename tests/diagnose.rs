@@ -329,26 +329,87 @@ fn rates() {
     eprintln!("eq. (6) cross terms: reported unexplained in {unexplained}/{seeds}");
 }
 
-/// The table rig as it is (panel quantisation, table accuracy, arm repeatability), no effect
-/// (run with `--ignored --nocapture`): how often something is claimed. Quantisation is not
-/// Gaussian and repeats at the `ref` poses, so the pure error understates it.
-#[test]
-#[ignore]
-fn table_rig_null_rate() {
+/// Null recordings on the table rig as it is (panel quantisation, table accuracy, arm
+/// repeatability 0.03 mm), no effect: how many of `n` (seeds from `first`) claim something.
+/// Quantisation repeats at the `ref` poses, so pure error alone understates the noise; the
+/// diagnosis adds the panel's cell variance w²/12 and projects out its structure.
+fn table_null_claims(first: u64, n: u64) -> u64 {
     let mut claims = 0;
-    let n = 20;
-    for s in 0..n {
+    for s in first..first + n {
         let text = format!(
-            "description = \"null\"\nseed = {}\nrig = \"../rigs/rv-m2.toml\"\n[geometric]\nrandom = {{ length_mm = 0.4, angle_deg = 0.05, distribution = \"signs\" }}\n[measurement]\narm_repeatability_mm = 0.03\nseconds_per_point = 5.0\n",
-            9000 + s
+            "description = \"null\"\nseed = {s}\nrig = \"../rigs/rv-m2.toml\"\n[geometric]\nrandom = {{ length_mm = 0.4, angle_deg = 0.05, distribution = \"signs\" }}\n[measurement]\narm_repeatability_mm = 0.03\nseconds_per_point = 5.0\n"
         );
         let sc =
             Scenario::parse(&text, Path::new("sim/diagnose-test.toml"), None).expect("scenario");
-        let r = run(&sc, 600, 9000 + s);
+        let r = run(&sc, 600, s);
         if r.mismatch.significant || !r.effects.is_empty() || r.unexplained {
             claims += 1;
-            eprintln!("{}", r.text());
+            eprintln!("seed {s}:\n{}", r.text());
         }
     }
+    claims
+}
+
+#[test]
+fn table_rig_claims_nothing_without_an_effect() {
+    let claims = table_null_claims(9000, 10);
+    assert_eq!(
+        claims, 0,
+        "table rig nulls: something claimed in {claims}/10"
+    );
+}
+
+/// The table rig's null rate over many seeds (run with `--ignored --nocapture`; default 100,
+/// `RIGCAL_RATE_SEEDS` × 5): conventions §9 asks at most 2 %.
+#[test]
+#[ignore]
+fn table_rig_null_rate() {
+    let n: u64 = std::env::var("RIGCAL_RATE_SEEDS")
+        .ok()
+        .and_then(|s| s.parse::<u64>().ok())
+        .map_or(100, |s| 5 * s);
+    let claims = table_null_claims(9000, n);
     eprintln!("table rig, quantised, no effect: something claimed in {claims}/{n}");
+    assert!(claims as f64 <= 0.02 * n as f64, "{claims}/{n}");
+}
+
+/// Naming on the quantised table rig (run with `--ignored --nocapture`): the quantisation
+/// handling of the null controls must leave effects of `sim/rig-realistic.toml`'s size visible.
+#[test]
+#[ignore]
+fn table_rig_naming_rate() {
+    let seeds: u64 = std::env::var("RIGCAL_RATE_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    let cases = [
+        (
+            "backlash:2",
+            "[[effects]]\nkind = \"backlash\"\njoint = 2\nlost_motion_deg = 0.015\n",
+        ),
+        (
+            "table_scale:x",
+            "[[effects]]\nkind = \"table_scale\"\naxis = \"x\"\nscale_ppm = 150.0\n",
+        ),
+        (
+            "joint_compliance:3",
+            "[[effects]]\nkind = \"joint_compliance\"\nmasses = [ { link = 2, kg = 3.5, at_mm = [-125.0, 0.0, 0.0] }, { link = 3, kg = 2.5, at_mm = [-130.0, 0.0, 0.0] }, { link = 5, kg = 1.0, at_mm = [-150.0, 0.0, 0.0] } ]\njoints = [ { joint = 3, deg_per_nm = 0.003 } ]\n",
+        ),
+    ];
+    for (want, effects) in cases {
+        let mut named = 0;
+        for s in 0..seeds {
+            let text = format!(
+                "description = \"quantised\"\nseed = {}\nrig = \"../rigs/rv-m2.toml\"\n[geometric]\nrandom = {{ length_mm = 0.4, angle_deg = 0.05, distribution = \"signs\" }}\n{effects}\n[measurement]\narm_repeatability_mm = 0.03\nseconds_per_point = 5.0\n",
+                11000 + s
+            );
+            let sc = Scenario::parse(&text, Path::new("sim/diagnose-test.toml"), None)
+                .expect("scenario");
+            let r = run(&sc, 600, 11000 + s);
+            if names(&r).first().is_some_and(|g| g == want) {
+                named += 1;
+            }
+        }
+        eprintln!("table rig, quantised: {want} named first in {named}/{seeds}");
+    }
 }

@@ -1,10 +1,11 @@
 //! `rigcal identify`: conventional calibration of a recording.
 
+use crate::identification::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
 use crate::identification::registration::kabsch;
 use crate::identification::{analyse, candidate_order, fit, FitOptions, FitResult};
 use crate::kinematics::{ErrorParams, JointKind, ParamKind, Robot, SerialChain, TransformId};
 use crate::model::{ModelFile, Provenance};
-use crate::recording::Recording;
+use crate::recording::{Recording, Status};
 use crate::rig::{FrameMode, Rig};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -45,13 +46,14 @@ pub enum Level {
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
     let rec = Recording::read(&a.recording, rig.chain.joints())?;
-    let (chain, result) = identify_at(&rig, &rec, a.level)?;
+    let (chain, result, outliers, warning) = identify_robust(&rig, &rec, a.level)?;
     println!(
         "recording {}: {} rows, {} measurements used",
         a.recording.display(),
         rec.rows.len(),
         result.after.n
     );
+    print_outliers(&outliers);
     print!("{}", super::parameter_table(chain.layout(), &result, None));
     print_fit_summary(&result);
     for dir in &a.heldout {
@@ -85,18 +87,89 @@ pub fn run(a: Args) -> Result<()> {
             after.max_mm
         );
     }
-    let file = ModelFile::constant(
+    let mut file = ModelFile::constant(
         &rig,
         &result,
         Provenance {
             recording: Some(a.recording.display().to_string()),
             measurements: result.after.n,
-            notes: None,
+            notes: warning,
         },
     );
+    file.outliers = outliers;
     file.save(&a.out)?;
     println!("model written to {}", a.out.display());
     Ok(())
+}
+
+/// Prints the outliers removed from a fit (or that there were none).
+pub(crate) fn print_outliers(outliers: &[Outlier]) {
+    if outliers.is_empty() {
+        println!("outliers: none");
+    }
+    for o in outliers {
+        let line = o.line.map(|l| format!(", line {l}")).unwrap_or_default();
+        println!(
+            "outlier removed from the fit: seq {}{line}, {:.4} mm off ({:.1} σ; residual x {:.4}, y {:.4}, z {:.4} mm)",
+            o.seq, o.size_mm, o.sigmas, o.residual_mm[0], o.residual_mm[1], o.residual_mm[2]
+        );
+    }
+}
+
+/// A refit that failed inside the outlier search.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub(crate) struct RefitFailed(String);
+
+/// Identifies at a level with outliers found robustly and removed
+/// ([`crate::identification::outliers`]): each removal refits the model without the row. More
+/// than 5 % of the rows failing means the data or the model are bad: nothing is removed and the
+/// warning is returned (and printed).
+pub(crate) fn identify_robust(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>)> {
+    let measured: Vec<usize> = (0..rec.rows.len())
+        .filter(|&k| rec.rows[k].status == Status::Ok && rec.rows[k].position.is_some())
+        .collect();
+    let ids: Vec<(u64, Option<u64>)> = measured
+        .iter()
+        .map(|&k| (rec.rows[k].seq, rec.lines.get(k).copied()))
+        .collect();
+    let obs = super::observations(rec);
+    let mut last = None;
+    let outliers = remove_outliers(&ids, &OutlierSettings::default(), |kept| {
+        let mut sub = rec.clone();
+        let mut keep = vec![false; measured.len()];
+        for &i in kept {
+            keep[i] = true;
+        }
+        for (i, &k) in measured.iter().enumerate() {
+            if !keep[i] {
+                // Kept as a row (joints, order) but not fitted.
+                sub.rows[k].status = Status::Via;
+            }
+        }
+        let (chain, result) =
+            identify_at(rig, &sub, level).map_err(|e| RefitFailed(format!("{e:#}")))?;
+        let res = crate::identification::errors(&chain, &obs, &result.params);
+        let p = result.free.len();
+        last = Some((chain, result));
+        Ok::<_, RefitFailed>((res, p))
+    });
+    let outliers = match outliers {
+        Ok((found, _)) => found,
+        Err(e @ OutlierError::TooMany { .. }) => {
+            // The data (or the geometric model) are bad: say so loudly and remove nothing.
+            eprintln!("warning: {e}; no rows removed");
+            let (chain, result) = identify_at(rig, rec, level)?;
+            return Ok((chain, result, Vec::new(), Some(e.to_string())));
+        }
+        Err(e) => return Err(anyhow::anyhow!("outlier search: {e}")),
+    };
+    let (chain, result) = last.context("identification did not run")?;
+    Ok((chain, result, outliers, None))
 }
 
 /// Prints κ and the residual statistics of a fit.

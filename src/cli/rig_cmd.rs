@@ -51,7 +51,20 @@ pub fn run(a: Args) -> Result<()> {
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "robot".into());
-            let toml = rig_toml(&name, &urdf.display().to_string(), &base, &tip, &chain);
+            let toml = rig_toml(&name, &urdf.display().to_string(), &base, &tip, &chain, &[]);
+            let rig = Rig::parse(&toml, Some(&out))
+                .context("the generated rig file does not validate (a bug: please report it)")?;
+            // Link masses: the URDF's centres of mass (base frame, q = 0) moved into each link's
+            // end frame of the five-parameter chain, which is rigid with the same link.
+            let coms = link_coms(&rig, &chain);
+            let toml = rig_toml(
+                &name,
+                &urdf.display().to_string(),
+                &base,
+                &tip,
+                &chain,
+                &coms,
+            );
             let rig = Rig::parse(&toml, Some(&out))
                 .context("the generated rig file does not validate (a bug: please report it)")?;
             std::fs::write(&out, &toml)
@@ -81,12 +94,38 @@ fn pose_fields(p: &Isometry3<f64>) -> String {
 }
 
 /// The rig file text of a converted URDF chain.
+/// Each link's mass and centre of mass in its end frame (mm), from the URDF's base-frame
+/// centres at q = 0.
+fn link_coms(
+    rig: &Rig,
+    c: &crate::kinematics::urdf::UrdfChain,
+) -> Vec<Option<(f64, nalgebra::Vector3<f64>)>> {
+    use crate::kinematics::{ErrorParams, Robot};
+    let e = ErrorParams::zeros(rig.chain.layout());
+    let q0 = vec![0.0; rig.chain.dof()];
+    c.masses
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            m.map(|(kg, com)| {
+                let end = rig.chain.frame_before_joint(&q0, &e, i + 1);
+                (
+                    kg,
+                    end.inverse_transform_point(&nalgebra::Point3::from(com))
+                        .coords,
+                )
+            })
+        })
+        .collect()
+}
+
 pub(crate) fn rig_toml(
     name: &str,
     source: &str,
     base: &str,
     tip: &str,
     c: &crate::kinematics::urdf::UrdfChain,
+    coms: &[Option<(f64, nalgebra::Vector3<f64>)>],
 ) -> String {
     let mut s = String::new();
     let _ = writeln!(
@@ -100,7 +139,7 @@ pub(crate) fn rig_toml(
     let _ = writeln!(s, "name = \"{name}\"\ndescription = \"{name} from URDF ({base} to {tip})\"\n\n[robot]\nname = \"{name}\"");
     let _ = writeln!(s, "base = {}", pose_fields(&c.base));
     let _ = writeln!(s, "tool = {}", pose_fields(&c.tool));
-    for j in &c.joints {
+    for (i, j) in c.joints.iter().enumerate() {
         let l = &j.link;
         let _ = writeln!(s, "\n[[robot.joints]]\nname = \"{}\"", j.name);
         match j.kind {
@@ -129,6 +168,13 @@ pub(crate) fn rig_toml(
             l.alpha.to_degrees(),
             l.beta.to_degrees()
         );
+        if let Some(Some((kg, c))) = coms.get(i) {
+            let _ = writeln!(
+                s,
+                "mass_kg = {kg}   # from <inertial>\ncom_mm = [{}, {}, {}]   # in the frame at the end of this link",
+                c.x, c.y, c.z
+            );
+        }
     }
     let _ = writeln!(s, "\n[calibration]\n# Seen by a tracker: its frame and the marker on the last link are unknown and fitted.\nmeasurement_frame = \"free\"\nmarker = \"free\"\n\n[instrument]\nkind = \"tracker\"");
     s

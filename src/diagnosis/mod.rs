@@ -10,8 +10,18 @@
 //!    direction, time, table coordinate, gravity torque;
 //! 4. name it ([`select`]): candidates from the library (one file each) projected onto the
 //!    orthogonal complement of the geometric Jacobian, forward selection with partial F-tests;
-//! 5. refit with the chosen effects and report RMS before/after on the fitted and held-out data;
-//! 6. test what is left against flexible unnamed bases and report `unexplained` when it matters.
+//! 5. refit with the chosen effects and report RMS before/after on the fitted and held-out data,
+//!    per effect the share the geometry absorbed and the held-out RMS with and without it;
+//! 6. test what is left against flexible unnamed bases and report `unexplained` when it matters;
+//! 7. judge outliers against the final model ([`crate::identification::outliers`]), remove them
+//!    and diagnose again without them, naming each with its seq, line and size.
+//!
+//! Without enough repeated poses (tracker recordings of 40–60 postures) the noise floor is the
+//! residual variance and every term is tested against it; the report says which method it used,
+//! that approach directions came from row order, and that time effects were left out when the
+//! recording has no `t_s`. A quantising instrument (the table rig's panel) adds its known cell
+//! variance to the noise floor, the tests weight each axis by its variance, and the quantisation
+//! sawtooth is projected out with the geometry ([`quantisation_nuisance`]).
 //!
 //! Conventions: residual r = measured − modelled (mm), 3 rows per measurement (x, y, z, world);
 //! joint values in radians (mm for prismatic joints) inside; time in seconds; the "noise floor"
@@ -165,6 +175,10 @@ pub struct Data {
     pub joint_jacobian: Vec<DMatrix<f64>>,
     /// Joints that move in the recording (0-based).
     pub moving: Vec<usize>,
+    /// `seq` of each measurement.
+    pub seq: Vec<u64>,
+    /// CSV line of each measurement (1-based), when the recording was read from a file.
+    pub line: Vec<Option<u64>>,
 }
 
 impl Data {
@@ -199,6 +213,8 @@ impl Data {
                 .map(|&i| self.joint_jacobian[i].clone())
                 .collect(),
             moving: self.moving.clone(),
+            seq: idx.iter().map(|&i| self.seq[i]).collect(),
+            line: idx.iter().map(|&i| self.line[i]).collect(),
         }
     }
 
@@ -224,11 +240,32 @@ impl Data {
     }
 }
 
-/// The candidate library for a joint count: every kind on every joint or axis.
+/// The candidate library for a joint count: every kind on every joint or axis (compliance with
+/// the generic unit-mass model).
 pub fn library(dof: usize) -> Vec<Box<dyn Candidate>> {
+    library_with_masses(dof, None)
+}
+
+/// The candidate library for a rig: compliance uses the rig's link masses where it states them.
+pub fn library_for(rig: &Rig) -> Vec<Box<dyn Candidate>> {
+    let masses = rig
+        .link_masses
+        .iter()
+        .any(Option::is_some)
+        .then(|| std::sync::Arc::new(rig.link_masses.clone()));
+    library_with_masses(rig.chain.joints().len(), masses)
+}
+
+fn library_with_masses(
+    dof: usize,
+    masses: Option<std::sync::Arc<Vec<Option<crate::rig::LinkMass>>>>,
+) -> Vec<Box<dyn Candidate>> {
     let mut v: Vec<Box<dyn Candidate>> = Vec::new();
     for j in 0..dof {
-        v.push(Box::new(compliance::JointCompliance { joint: j }));
+        v.push(Box::new(compliance::JointCompliance {
+            joint: j,
+            masses: masses.clone(),
+        }));
         v.push(Box::new(backlash::Backlash { joint: j }));
         for n in 1..=transmission::MAX_ORDER {
             v.push(Box::new(transmission::TransmissionError {
@@ -275,6 +312,109 @@ pub struct Standard {
     pub residual: nalgebra::DVector<f64>,
     /// The geometric Jacobian at the fit (3 per measurement × fitted parameters).
     pub jacobian: DMatrix<f64>,
+    /// Known variance the instrument adds per world coordinate (mm²) beyond what repeated
+    /// poses show: the panel's quantisation, uniform over one count, w²/12 per axis.
+    pub instrument_var: [f64; 3],
+    /// How `instrument_var` was found, when it is not zero.
+    pub instrument_note: Option<String>,
+    /// Nuisance columns of the instrument (3 per measurement × k), projected out with the
+    /// geometry before any candidate is tested: see [`quantisation_nuisance`].
+    pub nuisance: DMatrix<f64>,
+}
+
+/// Harmonics of the panel's quantisation error modelled as nuisance.
+pub const QUANTISATION_HARMONICS: usize = 3;
+
+/// The panel's quantisation error as nuisance columns. A panel count rounds the pin's true
+/// offset u from the panel centre to its cell's centre, so the error is a sawtooth of u with the
+/// cell width w as period. The table goes to the *nominal* tip, so u is the arm's error there —
+/// a smooth function of the pose — and the sawtooth of a smooth function is itself structured:
+/// smooth candidates and the unnamed bases would pick up part of it. The columns are
+/// sin(2πk·û/w) and cos(2πk·û/w), k = 1..[`QUANTISATION_HARMONICS`], on the x and the y rows,
+/// û the offset the fitted model predicts (modelled tip − panel centre, the panel centre being
+/// the table-frame point minus the reported (u, v)). Empty when the recording is not quantised
+/// or lacks the table and panel columns.
+pub fn quantisation_nuisance(rig: &Rig, rec: &Recording, data: &Data) -> DMatrix<f64> {
+    let n = data.len();
+    let empty = DMatrix::zeros(3 * n, 0);
+    let crate::rig::Instrument::TablePanel(tp) = &rig.instrument else {
+        return empty;
+    };
+    let uv: Vec<Option<[f64; 2]>> = rec
+        .rows
+        .iter()
+        .filter(|r| r.status == Status::Ok && r.position.is_some())
+        .map(|r| r.panel_uv)
+        .collect();
+    let (Some(table), true) = (&data.table, uv.len() == n && uv.iter().all(Option::is_some)) else {
+        return empty;
+    };
+    let cell = [
+        tp.panel_size_mm[0] / f64::from(tp.panel_counts[0].max(1)),
+        tp.panel_size_mm[1] / f64::from(tp.panel_counts[1].max(1)),
+    ];
+    let k = QUANTISATION_HARMONICS;
+    let mut m = DMatrix::zeros(3 * n, 4 * k);
+    for i in 0..n {
+        let Some(p) = uv[i] else { continue };
+        let model = data.chain.position(&data.obs[i].q, &data.e) - tp.table_to_world_mm;
+        for a in 0..2 {
+            let centre = table[i][a] - p[a];
+            let u = model[a] - centre;
+            for h in 0..k {
+                let x = 2.0 * std::f64::consts::PI * (h + 1) as f64 * u / cell[a];
+                m[(3 * i + a, 2 * k * a + 2 * h)] = x.sin();
+                m[(3 * i + a, 2 * k * a + 2 * h + 1)] = x.cos();
+            }
+        }
+    }
+    m
+}
+
+/// The instrument's quantisation variance per world coordinate (mm²): a table_panel rig whose
+/// recorded panel offsets lie on the count grid (cell centres, conventions §8) reads x and y to
+/// a cell of W/Nx × H/Ny mm, an error uniform over the cell, variance w²/12. The grid is checked
+/// on the data so a simulation with quantisation switched off is not penalised; without panel
+/// columns the rig's panel is assumed to quantise. Table axes are parallel to the world axes
+/// (the registration is a translation, `rigs/rv-m2.toml`).
+pub fn quantisation_variance(rig: &Rig, rec: &Recording) -> ([f64; 3], Option<String>) {
+    let crate::rig::Instrument::TablePanel(tp) = &rig.instrument else {
+        return ([0.0; 3], None);
+    };
+    let cell = [
+        tp.panel_size_mm[0] / f64::from(tp.panel_counts[0].max(1)),
+        tp.panel_size_mm[1] / f64::from(tp.panel_counts[1].max(1)),
+    ];
+    let on_grid = |v: f64, a: usize| {
+        let c = (v + tp.panel_size_mm[a] / 2.0) / cell[a] - 0.5;
+        (c - c.round()).abs() * cell[a] < 2e-3
+    };
+    let uv: Vec<[f64; 2]> = rec
+        .rows
+        .iter()
+        .filter(|r| r.status == Status::Ok)
+        .filter_map(|r| r.panel_uv)
+        .collect();
+    let quantised = uv.is_empty() || uv.iter().all(|p| on_grid(p[0], 0) && on_grid(p[1], 1));
+    if !quantised {
+        return ([0.0; 3], None);
+    }
+    let var = [cell[0].powi(2) / 12.0, cell[1].powi(2) / 12.0, 0.0];
+    let how = if uv.is_empty() {
+        "the rig's panel (no panel columns in the recording)"
+    } else {
+        "the panel readings, which lie on its count grid"
+    };
+    (
+        var,
+        Some(format!(
+            "the noise floor includes the panel's quantisation ({:.3} × {:.3} mm cells, σ {:.3} / {:.3} mm in x / y, from {how}): it repeats at repeated poses, so their pure error cannot show it",
+            cell[0],
+            cell[1],
+            var[0].sqrt(),
+            var[1].sqrt()
+        )),
+    )
 }
 
 /// Measurement data of a recording with the chain and geometry given (no fit).
@@ -291,7 +431,9 @@ pub fn prepare(
     let mut direction = Vec::new();
     let mut table = Vec::new();
     let mut region = Vec::new();
-    for row in &rec.rows {
+    let mut seq = Vec::new();
+    let mut line = Vec::new();
+    for (k, row) in rec.rows.iter().enumerate() {
         if row.q.len() != n {
             return Err(DiagnoseError::JointCount {
                 expected: n,
@@ -320,6 +462,8 @@ pub fn prepare(
         direction.push(dir.clone());
         table.push(row.table);
         region.push(row.region.clone());
+        seq.push(row.seq);
+        line.push(rec.lines.get(k).copied());
     }
     if obs.is_empty() {
         return Err(DiagnoseError::NoMeasurements);
@@ -345,6 +489,8 @@ pub fn prepare(
         region,
         joint_jacobian,
         moving,
+        seq,
+        line,
     })
 }
 
@@ -380,11 +526,20 @@ pub fn standard_fit(rig: &Rig, rec: &Recording) -> Result<Standard, DiagnoseErro
         &ident.basis,
     );
     let residual = residual_of(&data);
+    let (instrument_var, instrument_note) = quantisation_variance(rig, rec);
+    let nuisance = if instrument_var.iter().any(|v| *v > 0.0) {
+        quantisation_nuisance(rig, rec, &data)
+    } else {
+        DMatrix::zeros(3 * data.len(), 0)
+    };
     Ok(Standard {
+        nuisance,
         data,
         free: ident.basis,
         residual,
         jacobian,
+        instrument_var,
+        instrument_note,
     })
 }
 
@@ -400,21 +555,62 @@ pub fn residual_of(d: &Data) -> nalgebra::DVector<f64> {
     r
 }
 
-/// Diagnoses a recording: see the module documentation.
+/// Rounds of "diagnose, then judge outliers, then diagnose again without them".
+const OUTLIER_ROUNDS: usize = 3;
+
+/// Diagnoses a recording: see the module documentation. Outliers are judged last, against the
+/// geometry and the named effects; rows that fail are removed from the fit (kept for the
+/// approach directions, as `via` rows are) and the diagnosis runs again without them, so a row
+/// a diagnosed effect explains is never removed, and no removal is silent (the report lists
+/// each with its seq, line and size).
 pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, DiagnoseError> {
-    let std = standard_fit(rig, rec)?;
-    let heldout = opts
-        .heldout
+    let lib = library_for(rig);
+    let mut work = rec.clone();
+    let mut removed: Vec<crate::identification::outliers::Outlier> = Vec::new();
+    let measured: Vec<u64> = rec
+        .rows
         .iter()
-        .map(|h| {
-            let d = prepare(&std.data.chain, &std.data.e, h)?;
-            let poses: Vec<Vec<f64>> = d.obs.iter().map(|o| o.q.clone()).collect();
-            let g = crate::identification::identifiability::stacked_jacobian(
-                &d.chain, &d.e, &poses, &std.free,
-            );
-            let r = residual_of(&d);
-            Ok((d, g, r))
-        })
-        .collect::<Result<Vec<_>, DiagnoseError>>()?;
-    select::run(&std, &library(rig.chain.joints().len()), &heldout)
+        .filter(|r| r.status == Status::Ok && r.position.is_some())
+        .map(|r| r.seq)
+        .collect();
+    for round in 0..OUTLIER_ROUNDS {
+        let std = standard_fit(rig, &work)?;
+        let heldout = opts
+            .heldout
+            .iter()
+            .map(|h| {
+                let d = prepare(&std.data.chain, &std.data.e, h)?;
+                let poses: Vec<Vec<f64>> = d.obs.iter().map(|o| o.q.clone()).collect();
+                let g = crate::identification::identifiability::stacked_jacobian(
+                    &d.chain, &d.e, &poses, &std.free,
+                );
+                let r = residual_of(&d);
+                Ok((d, g, r))
+            })
+            .collect::<Result<Vec<_>, DiagnoseError>>()?;
+        let (mut report, found) = select::run(&std, &lib, &heldout)?;
+        if found.is_empty() || round + 1 == OUTLIER_ROUNDS {
+            if !found.is_empty() {
+                report.notes.push(format!(
+                    "{} more row(s) look like outliers after {OUTLIER_ROUNDS} rounds and were kept: {}",
+                    found.len(),
+                    found
+                        .iter()
+                        .map(|o| format!("seq {} ({:.3} mm)", o.seq, o.size_mm))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ));
+            }
+            report.outliers = removed;
+            return Ok(report);
+        }
+        for mut o in found {
+            for row in work.rows.iter_mut().filter(|r| r.seq == o.seq) {
+                row.status = Status::Via;
+            }
+            o.index = measured.iter().position(|&s| s == o.seq).unwrap_or(o.index);
+            removed.push(o);
+        }
+    }
+    Err(DiagnoseError::NoMeasurements)
 }

@@ -4,7 +4,8 @@
 //! replicate) form groups; the pure-error sum of squares is Σ_groups Σ ‖p − p̄_group‖² with
 //! 3·(n_g − 1) degrees of freedom per group. With at least [`MIN_PURE_ERROR_DOF`] degrees of
 //! freedom it estimates σ² per coordinate, and the lack-of-fit F-test compares the residual
-//! beyond pure error with it. Otherwise the diagnosis falls back to per-term tests against the
+//! beyond pure error with it (plus the instrument's known quantisation variance, which a repeated
+//! pose reads identically and so cannot show). Otherwise the diagnosis falls back to per-term tests against the
 //! residual variance (and says so).
 //!
 //! [`MIN_PURE_ERROR_DOF`]: super::MIN_PURE_ERROR_DOF
@@ -66,12 +67,16 @@ pub fn pure_error(d: &Data, residual: &DVector<f64>) -> PureError {
 }
 
 /// Lack-of-fit F-test: p-value that the residual beyond pure error is noise. `rss` and
-/// `dof_residual` are the model's residual sum of squares and degrees of freedom.
-pub fn lack_of_fit(pe: &PureError, rss: f64, dof_residual: usize) -> Option<f64> {
+/// `dof_residual` are the model's residual sum of squares and degrees of freedom; `extra_var`
+/// (mm² per coordinate) is variance the instrument adds that repeated poses cannot show (the
+/// panel's quantisation repeats at a repeated pose): it joins the pure-error variance in the
+/// denominator. Where a replicate group does change cell, its pure error already holds part of
+/// it, so the test errs towards claiming nothing.
+pub fn lack_of_fit(pe: &PureError, rss: f64, dof_residual: usize, extra_var: f64) -> Option<f64> {
     if pe.dof == 0 || dof_residual <= pe.dof || pe.ss <= 0.0 {
         return None;
     }
     let dof_lof = (dof_residual - pe.dof) as f64;
-    let f = ((rss - pe.ss).max(0.0) / dof_lof) / (pe.ss / pe.dof as f64);
+    let f = ((rss - pe.ss).max(0.0) / dof_lof) / (pe.ss / pe.dof as f64 + extra_var);
     Some(f_sf(f, dof_lof, pe.dof as f64))
 }

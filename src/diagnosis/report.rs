@@ -26,6 +26,14 @@ pub struct Report {
     pub absorbed: Vec<String>,
     /// RMS before and after.
     pub fit: FitSummary,
+    /// Measurements removed from the fit as outliers (judged after the effects were named),
+    /// each with its seq, file line and size.
+    #[serde(default)]
+    pub outliers: Vec<crate::identification::outliers::Outlier>,
+    /// How the diagnosis worked on this recording: approach directions from row order, time
+    /// effects left out without `t_s`, the instrument's quantisation, outliers kept.
+    #[serde(default)]
+    pub notes: Vec<String>,
 }
 
 /// The mismatch test.
@@ -37,6 +45,11 @@ pub struct Mismatch {
     pub rms_mm: f64,
     /// 3-D RMS of pure noise, √3·σ (mm).
     pub noise_floor_mm: f64,
+    /// Which noise floor the tests used: `pure_error` (repeated poses, lack-of-fit test) or
+    /// `residual_variance` (too few repeated poses: per-term tests against the residual
+    /// variance only).
+    #[serde(default)]
+    pub noise_floor_method: String,
     /// How the noise floor was estimated.
     pub noise_source: String,
     /// p-value of the lack-of-fit test of the geometric model (when pure error is available).
@@ -91,6 +104,16 @@ pub struct EffectReport {
     pub size_sigma_mm: f64,
     /// Fraction of the fitted effect that the geometry does not absorb.
     pub visible_fraction: f64,
+    /// Fraction the geometric parameters absorb: 1 − `visible_fraction`.
+    #[serde(default)]
+    pub absorbed_fraction: f64,
+    /// Held-out 3-D RMS with every named effect (mm).
+    #[serde(default)]
+    pub heldout_rms_with_mm: Option<f64>,
+    /// Held-out 3-D RMS with every named effect but this one (mm): the difference is the
+    /// held-out improvement this effect brings.
+    #[serde(default)]
+    pub heldout_rms_without_mm: Option<f64>,
     /// The same for the candidate's regressors (columns scaled to unit norm).
     pub visible_fraction_of_candidate: f64,
     /// p-value of its partial F-test when it was selected (before Bonferroni).
@@ -283,8 +306,8 @@ impl Report {
         );
         let _ = writeln!(
             s,
-            "noise floor: {:.4} mm (3-D RMS), from {}",
-            m.noise_floor_mm, m.noise_source
+            "noise floor: {:.4} mm (3-D RMS), method {}: from {}",
+            m.noise_floor_mm, m.noise_floor_method, m.noise_source
         );
         if let Some(p) = m.lack_of_fit_p {
             let _ = writeln!(s, "lack-of-fit test of the geometric model: p = {p:.2e}");
@@ -326,6 +349,18 @@ impl Report {
                 e.p_value
             );
             let _ = writeln!(s, "  {}", e.explanation);
+            let _ = writeln!(
+                s,
+                "  the geometric parameters absorbed {:.0} % of it",
+                100.0 * e.absorbed_fraction
+            );
+            if let (Some(w), Some(wo)) = (e.heldout_rms_with_mm, e.heldout_rms_without_mm) {
+                let _ = writeln!(
+                    s,
+                    "  held-out RMS {wo:.4} mm without it, {w:.4} mm with it ({:+.4} mm)",
+                    w - wo
+                );
+            }
             for (k, v) in &e.params {
                 match e.params_sigma.get(k) {
                     Some(sd) => {
@@ -352,6 +387,20 @@ impl Report {
             for w in &self.unexplained_where {
                 let _ = writeln!(s, "  where: {}", w.description);
             }
+        }
+        for o in &self.outliers {
+            let line = o.line.map(|l| format!(", line {l}")).unwrap_or_default();
+            let _ = writeln!(
+                s,
+                "outlier removed from the fit: seq {}{line}, {:.4} mm off ({:.1} σ; residual x {:.4}, y {:.4}, z {:.4} mm)",
+                o.seq, o.size_mm, o.sigmas, o.residual_mm[0], o.residual_mm[1], o.residual_mm[2]
+            );
+        }
+        if self.outliers.is_empty() {
+            let _ = writeln!(s, "outliers: none (judged after naming the effects)");
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "note: {n}");
         }
         let f = &self.fit;
         let _ = writeln!(

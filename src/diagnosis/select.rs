@@ -16,6 +16,7 @@ use super::{
     Candidate, Data, DiagnoseError, Index, Standard, ALPHA, AXES, MIN_PURE_ERROR_DOF, MIN_VISIBLE,
     SEPARABLE_CORRELATION,
 };
+use crate::identification::outliers::{remove_outliers, Outlier, OutlierSettings};
 use crate::kinematics::Robot;
 use nalgebra::{DMatrix, DVector};
 use std::collections::BTreeMap;
@@ -225,17 +226,32 @@ struct Chosen {
     visible: f64,
 }
 
-/// Runs steps 2 to 6 on a standard fit. `heldout`: (data, geometric Jacobian, residual) of each
-/// held-out recording at the fitted geometry.
+/// Runs steps 2 to 6 on a standard fit, then judges outliers against the final model (geometry
+/// and named effects). `heldout`: (data, geometric Jacobian, residual) of each held-out
+/// recording at the fitted geometry. Returns the report and the rows that fail the outlier test
+/// (the caller removes them and runs again).
 pub fn run(
     std: &Standard,
     lib: &[Box<dyn Candidate>],
     heldout: &[(Data, DMatrix<f64>, DVector<f64>)],
-) -> Result<Report, DiagnoseError> {
+) -> Result<(Report, Vec<Outlier>), DiagnoseError> {
     let d = &std.data;
     let nrows = 3 * d.len();
-    let qg = orth_basis(&std.jacobian, 1e-9);
-    let r0 = &std.residual - &qg * (qg.transpose() * &std.residual);
+    // The standard model: geometry and the instrument's nuisance columns.
+    let gn = hcat(&[std.jacobian.clone(), std.nuisance.clone()], nrows);
+    let qg_raw = orth_basis(&gn, 1e-9);
+    let r0_raw = &std.residual - &qg_raw * (qg_raw.transpose() * &std.residual);
+    // Noise floor from pure error.
+    let pe = pure_error(d, &std.residual);
+    let use_pe = pe.dof >= MIN_PURE_ERROR_DOF;
+    // The tests weight each row by 1/σ of its axis (generalised least squares) when the
+    // instrument's known variance differs by axis (the panel quantises x and y, not z); an
+    // unweighted test would take y's larger variance for structure. All 1 otherwise.
+    let wrow = row_weights(std, &pe, use_pe, &r0_raw);
+    let w = |m: &DMatrix<f64>| scale_rows(m, &wrow);
+    let qg = orth_basis(&w(&gn), 1e-9);
+    let rw = DVector::from_iterator(nrows, std.residual.iter().zip(&wrow).map(|(a, b)| a * b));
+    let r0 = &rw - &qg * (qg.transpose() * &rw);
     let dof0 = nrows.saturating_sub(qg.ncols());
     if dof0 < 2 * qg.ncols().max(10) {
         return Err(DiagnoseError::TooFew {
@@ -243,23 +259,23 @@ pub fn run(
             unknowns: qg.ncols(),
         });
     }
-    // Noise floor from pure error.
-    let pe = pure_error(d, &std.residual);
-    let use_pe = pe.dof >= MIN_PURE_ERROR_DOF;
     let alpha3 = ALPHA / 3.0;
+    // Known instrument variance per coordinate that repeated poses cannot show.
+    let extra_var = std.instrument_var.iter().sum::<f64>() / 3.0;
     let lof_geo = if use_pe {
-        lack_of_fit(&pe, r0.norm_squared(), dof0)
+        lack_of_fit(&pe, r0_raw.norm_squared(), dof0, extra_var)
     } else {
         None
     };
 
     // Candidate regressors.
     let xs: Vec<Option<DMatrix<f64>>> = lib.iter().map(|c| c.regressors(d)).collect();
+    let xs_w: Vec<Option<DMatrix<f64>>> = xs.iter().map(|x| x.as_ref().map(&w)).collect();
     let mut absorbed = Vec::new();
     let mut remaining = Vec::new();
     let mut visible_geo = vec![0.0; lib.len()];
     let mut basis_geo: Vec<Option<DMatrix<f64>>> = vec![None; lib.len()];
-    for (k, x) in xs.iter().enumerate() {
+    for (k, x) in xs_w.iter().enumerate() {
         let Some(x) = x else { continue };
         match visible_basis(&qg, x) {
             Some((u, v)) => {
@@ -282,7 +298,7 @@ pub fn run(
         let dof = nrows - q.ncols();
         let mut best: Option<(usize, f64, DMatrix<f64>)> = None;
         for &k in &remaining {
-            let Some(x) = &xs[k] else { continue };
+            let Some(x) = &xs_w[k] else { continue };
             let Some((u, _)) = visible_basis(&q, x) else {
                 continue;
             };
@@ -330,7 +346,7 @@ pub fn run(
     let dof_final = nrows - q.ncols();
     let mut unexplained_by = Vec::new();
     for (name, b) in &bases {
-        if let Some((u, _)) = visible_basis(&q, b) {
+        if let Some((u, _)) = visible_basis(&q, &w(b)) {
             let (p, dss) = partial_f(&u, &r, dof_final);
             tracing::debug!(basis = %name, k = u.ncols(), p, dss, rss = r.norm_squared(), "unnamed basis");
             if p < alpha3 / nb {
@@ -338,8 +354,13 @@ pub fn run(
             }
         }
     }
+    // What the named effects leave, unweighted.
+    let mut raw_cols = vec![gn.clone()];
+    raw_cols.extend(chosen.iter().map(|c| c.x.clone()));
+    let q_raw = orth_basis(&hcat(&raw_cols, nrows), 1e-9);
+    let r_raw = &std.residual - &q_raw * (q_raw.transpose() * &std.residual);
     let lof_final = if use_pe {
-        lack_of_fit(&pe, r.norm_squared(), dof_final)
+        lack_of_fit(&pe, r_raw.norm_squared(), dof_final, extra_var)
     } else {
         None
     };
@@ -360,7 +381,11 @@ pub fn run(
     let r_after = &std.residual - &a * &delta;
     let dof_after = nrows.saturating_sub(rank).max(1);
     let s2_after = r_after.norm_squared() / dof_after as f64;
-    let sigma = if use_pe { pe.sigma() } else { s2_after.sqrt() };
+    let sigma = if use_pe {
+        (pe.sigma().powi(2) + extra_var).sqrt()
+    } else {
+        s2_after.sqrt()
+    };
     let noise_floor = 3f64.sqrt() * sigma;
 
     // Effects.
@@ -378,8 +403,9 @@ pub fn run(
         let size = (xb.norm_squared() / m).sqrt();
         let g = c.x.transpose() * &xb / (m * size.max(1e-300));
         let size_sigma = (g.transpose() * &cov * &g)[(0, 0)].max(0.0).sqrt();
-        let vis_part = project_out(&qg, &DMatrix::from_column_slice(nrows, 1, xb.as_slice()));
-        let visible_fraction = vis_part.norm() / xb.norm().max(1e-300);
+        let xbw = w(&DMatrix::from_column_slice(nrows, 1, xb.as_slice()));
+        let vis_part = project_out(&qg, &xbw);
+        let visible_fraction = vis_part.norm() / xbw.norm().max(1e-300);
         let not_separable = alternatives(c.cand, &basis_geo, lib);
         let mut params = BTreeMap::new();
         let mut params_sigma = BTreeMap::new();
@@ -395,6 +421,9 @@ pub fn run(
             Index::Axes(a, b) => (None, None, Some([AXES[a].to_string(), AXES[b].to_string()])),
         };
         effects.push(EffectReport {
+            absorbed_fraction: 1.0 - visible_fraction,
+            heldout_rms_with_mm: None,
+            heldout_rms_without_mm: None,
             kind: cand.kind().to_string(),
             joint,
             axis,
@@ -412,60 +441,155 @@ pub fn run(
         });
     }
 
-    // Held-out RMS.
-    let (ho_before, ho_after, ho_what) = heldout_rms(std, &chosen, lib, heldout);
+    // Held-out RMS, with every named effect and without each one in turn.
+    let all: Vec<&Chosen> = chosen.iter().collect();
+    let (ho_before, ho_after, ho_what) = heldout_rms(std, &all, lib, heldout);
+    for (k, e) in effects.iter_mut().enumerate() {
+        let others: Vec<&Chosen> = chosen
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| *i != k)
+            .map(|(_, c)| c)
+            .collect();
+        e.heldout_rms_with_mm = ho_after;
+        e.heldout_rms_without_mm = heldout_rms(std, &others, lib, heldout).1;
+    }
+
+    // Outliers, judged last against the final linear model (geometry and named effects).
+    let ids: Vec<(u64, Option<u64>)> = d.seq.iter().copied().zip(d.line.iter().copied()).collect();
+    let mut notes = vec![
+        "approach directions were taken from row order: each joint's direction is the sign of its change from the previous row, measured or not (carried over when unchanged)".to_string(),
+    ];
+    if d.t_s.is_none() {
+        notes.push(
+            "the recording has no t_s on every measured row: time-dependent effects (thermal drift, time trends) were not considered".into(),
+        );
+    }
+    if let Some(n) = &std.instrument_note {
+        notes.push(n.clone());
+    }
+    let outliers = match remove_outliers(&ids, &OutlierSettings::default(), |kept| {
+        let ak = rows_of(&a, kept);
+        let rk = rows_of(
+            &DMatrix::from_column_slice(nrows, 1, std.residual.as_slice()),
+            kept,
+        );
+        let (delta, _, rank) = lstsq(&ak, &DVector::from_column_slice(rk.as_slice()));
+        let res = &std.residual - &a * delta;
+        Ok::<_, std::convert::Infallible>((
+            (0..d.len())
+                .map(|i| nalgebra::Vector3::new(res[3 * i], res[3 * i + 1], res[3 * i + 2]))
+                .collect(),
+            rank,
+        ))
+    }) {
+        Ok((found, _)) => found,
+        Err(e) => {
+            notes.push(format!("outliers not removed: {e}"));
+            Vec::new()
+        }
+    };
 
     let where_ = if significant {
-        vec![locate(d, &r0, "what the geometric model leaves")]
+        vec![locate(d, &r0_raw, "what the geometric model leaves")]
     } else {
         Vec::new()
     };
     let unexplained_where = if unexplained {
-        let mut w = locate(d, &r, "what the named effects leave");
+        let mut wh = locate(d, &r_raw, "what the named effects leave");
         let names: Vec<String> = unexplained_by
             .iter()
             .map(|(n, p)| format!("{n} (p = {p:.1e})"))
             .collect();
-        w.description = format!("{}; explained by {}", w.description, names.join(", "));
-        vec![w]
+        wh.description = format!("{}; explained by {}", wh.description, names.join(", "));
+        vec![wh]
     } else {
         Vec::new()
     };
-    Ok(Report {
-        mismatch: Mismatch {
-            significant,
-            rms_mm: rms3(&r0),
-            noise_floor_mm: noise_floor,
-            noise_source: if use_pe {
-                format!(
-                    "pure error of {} repeated poses ({} dof)",
-                    pe.groups, pe.dof
-                )
-            } else {
-                format!(
+    Ok((
+        Report {
+            notes,
+            outliers: Vec::new(),
+            mismatch: Mismatch {
+                significant,
+                rms_mm: rms3(&r0_raw),
+                noise_floor_mm: noise_floor,
+                noise_floor_method: if use_pe {
+                    "pure_error".into()
+                } else {
+                    "residual_variance".into()
+                },
+                noise_source: if use_pe {
+                    format!(
+                        "pure error of {} repeated poses ({} dof)",
+                        pe.groups, pe.dof
+                    )
+                } else {
+                    format!(
                     "residual variance after the final model ({} dof): fewer than {MIN_PURE_ERROR_DOF} dof of repeated poses ({}), so per-term tests only",
                     dof_after, pe.dof
                 )
+                },
+                lack_of_fit_p: lof_geo,
+                best_candidate: first_best.map(|(k, _)| lib[k].label()),
+                best_candidate_p: first_best.map(|(_, p)| p),
+                where_,
             },
-            lack_of_fit_p: lof_geo,
-            best_candidate: first_best.map(|(k, _)| lib[k].label()),
-            best_candidate_p: first_best.map(|(_, p)| p),
-            where_,
+            effects,
+            unexplained,
+            unexplained_where,
+            absorbed,
+            fit: FitSummary {
+                measurements: d.len(),
+                geometric_parameters: std.free.len(),
+                before_rms_mm: rms3(&r0_raw),
+                after_rms_mm: rms3(&r_after),
+                heldout_before_rms_mm: ho_before,
+                heldout_after_rms_mm: ho_after,
+                heldout: ho_what,
+            },
         },
-        effects,
-        unexplained,
-        unexplained_where,
-        absorbed,
-        fit: FitSummary {
-            measurements: d.len(),
-            geometric_parameters: std.free.len(),
-            before_rms_mm: rms3(&r0),
-            after_rms_mm: rms3(&r_after),
-            heldout_before_rms_mm: ho_before,
-            heldout_after_rms_mm: ho_after,
-            heldout: ho_what,
-        },
-    })
+        outliers,
+    ))
+}
+
+/// Row weights of the tests: 1/√(σ² + q_a²) for the rows of axis a, scaled so z-like rows keep
+/// weight 1, with q_a² the instrument's known variance and σ² the rest of the noise (pure error,
+/// else the residual of the unquantised axes). All 1 when the instrument adds nothing.
+fn row_weights(
+    std: &Standard,
+    pe: &super::noise::PureError,
+    use_pe: bool,
+    r0: &DVector<f64>,
+) -> Vec<f64> {
+    let n = r0.len();
+    let q = std.instrument_var;
+    if q.iter().all(|v| *v <= 0.0) {
+        return vec![1.0; n];
+    }
+    let s2 = if use_pe {
+        pe.sigma().powi(2)
+    } else {
+        let plain: Vec<usize> = (0..3).filter(|&a| q[a] <= 0.0).collect();
+        let m = (n / 3).max(1) as f64;
+        plain
+            .iter()
+            .map(|&a| (0..n / 3).map(|i| r0[3 * i + a].powi(2)).sum::<f64>() / m)
+            .sum::<f64>()
+            / plain.len().max(1) as f64
+    }
+    .max(1e-12);
+    (0..n).map(|k| (s2 / (s2 + q[k % 3])).sqrt()).collect()
+}
+
+fn scale_rows(m: &DMatrix<f64>, w: &[f64]) -> DMatrix<f64> {
+    let mut out = m.clone();
+    for (r, wr) in w.iter().enumerate() {
+        if *wr != 1.0 {
+            out.row_mut(r).scale_mut(*wr);
+        }
+    }
+    out
 }
 
 fn hcat(blocks: &[DMatrix<f64>], nrows: usize) -> DMatrix<f64> {
@@ -500,7 +624,7 @@ fn alternatives(
 /// the training part: the `--heldout` recordings when given, else 2 of 8 whole time blocks.
 fn heldout_rms(
     std: &Standard,
-    chosen: &[Chosen],
+    chosen: &[&Chosen],
     lib: &[Box<dyn Candidate>],
     heldout: &[(Data, DMatrix<f64>, DVector<f64>)],
 ) -> (Option<f64>, Option<f64>, String) {

@@ -6,6 +6,8 @@
 //!   basis, then the rest), κ of eq. (4) reported on column-scaled [M].
 //! * [`fit`]: Levenberg–Marquardt with column scaling on the chosen parameters, with each
 //!   parameter's standard deviation and residual statistics.
+//! * [`outliers`]: robust detection and removal of measurements no model explains, each named
+//!   with its row and size.
 //! * [`registration`]: the rigid measurement frame (table to world), closed form then refined by
 //!   the same fit with only the frame free — one mechanism for fixed and free frames.
 //!
@@ -13,6 +15,7 @@
 
 pub mod fit;
 pub mod identifiability;
+pub mod outliers;
 pub mod registration;
 
 pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};

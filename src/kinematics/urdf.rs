@@ -69,6 +69,10 @@ pub struct UrdfChain {
     pub joints: Vec<UrdfJoint>,
     /// Frame after the last link to the tip link (mm).
     pub tool: Isometry3<f64>,
+    /// Per moving joint, from the URDF's `<inertial>`: the mass (kg) of the links it moves (up
+    /// to the next moving joint) and their centre of mass in the base frame at q = 0 (mm); None
+    /// without mass.
+    pub masses: Vec<Option<(f64, Vector3<f64>)>>,
 }
 
 struct RawJoint {
@@ -112,8 +116,26 @@ pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, U
     path.reverse();
     let mut t = Isometry3::identity();
     let mut moving = Vec::new();
+    // Per moving joint: (Σ m, Σ m·c) of the links it carries up to the next moving joint, with c
+    // the centre of mass in the base frame at q = 0 (mm).
+    let mut mass: Vec<(f64, Vector3<f64>)> = Vec::new();
     for j in path {
         t *= pose(&j.origin);
+        let inertial = robot
+            .links
+            .iter()
+            .find(|l| l.name == j.child.link)
+            .map(|l| &l.inertial);
+        let add = |mass: &mut Vec<(f64, Vector3<f64>)>, t: &Isometry3<f64>| {
+            if let (Some(last), Some(i)) = (mass.last_mut(), inertial) {
+                let c = t * nalgebra::Point3::from(pose(&i.origin).translation.vector);
+                last.0 += i.mass.value;
+                last.1 += c.coords * i.mass.value;
+            }
+        };
+        if matches!(j.joint_type, urdf_rs::JointType::Fixed) {
+            add(&mut mass, &t);
+        }
         let kind = match j.joint_type {
             urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => JointKind::Revolute,
             urdf_rs::JointType::Prismatic => JointKind::Prismatic,
@@ -141,9 +163,16 @@ pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, U
             frame: t,
             axis: axis.normalize(),
         });
+        mass.push((0.0, Vector3::zeros()));
+        add(&mut mass, &t);
     }
     let tip_pose = t;
-    Ok(convert(moving, tip_pose))
+    let mut chain = convert(moving, tip_pose);
+    chain.masses = mass
+        .into_iter()
+        .map(|(m, mc)| (m > 0.0).then(|| (m, mc / m)))
+        .collect();
+    Ok(chain)
 }
 
 /// The frame with origin `o`, z along `z`, x along `x` (made orthogonal).
@@ -207,6 +236,7 @@ fn convert(joints: Vec<RawJoint>, tip: Isometry3<f64>) -> UrdfChain {
         base,
         joints: out,
         tool: current.inverse() * tip,
+        masses: Vec::new(),
     }
 }
 
