@@ -90,9 +90,10 @@ fn compensation(c: &mut Criterion) {
 struct ScenarioMeasurer(rigcal::world::World, u64);
 
 impl rigcal::division::Measurer for ScenarioMeasurer {
-    fn measure(&mut self, q: &[f64]) -> Option<nalgebra::Vector3<f64>> {
+    fn measure(&mut self, q: &[f64]) -> Option<rigcal::identification::Observation> {
         self.1 += 1;
-        self.0.measure_at(q, self.1 as f64, self.1, 0).position
+        let p = self.0.measure_at(q, self.1 as f64, self.1, 0).position?;
+        Some(rigcal::identification::Observation { q: q.to_vec(), p })
     }
 }
 

@@ -86,11 +86,17 @@ fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
     let (_, fcmac_max) = summary_figure(&summary, "Fig. 6 joint path", "fcmac");
     let (_, conventional_max) = summary_figure(&summary, "Fig. 6 joint path", "conventional");
     assert!(uncal_mean > 0.5, "{summary}");
-    assert!(fcmac_max < 0.02 && fcmac_max < conventional_max, "{summary}");
+    assert!(
+        fcmac_max < 0.02 && fcmac_max < conventional_max,
+        "{summary}"
+    );
     // The rig path: every point measured twice; the resolution floor is reported.
     assert!(out.contains("0 point(s) not measured"), "{out}");
     assert!(out.contains("command resolution alone"), "{out}");
-    assert!(out.contains("dropped") && out.contains("pin angle to the panel"), "{out}");
+    assert!(
+        out.contains("dropped") && out.contains("pin angle to the panel"),
+        "{out}"
+    );
 }
 
 #[test]

@@ -48,9 +48,12 @@ impl TrigArm {
 }
 
 impl Measurer for TrigArm {
-    fn measure(&mut self, q: &[f64]) -> Option<Vector3<f64>> {
+    fn measure(&mut self, q: &[f64]) -> Option<rigcal::identification::Observation> {
         self.count += 1;
-        Some(self.truth(q))
+        Some(rigcal::identification::Observation {
+            q: q.to_vec(),
+            p: self.truth(q),
+        })
     }
 }
 
@@ -161,7 +164,7 @@ fn offline_division_works_from_a_recording_without_regions() {
         .iter()
         .map(|q| Observation {
             q: q.clone(),
-            p: arm.measure(q).unwrap(),
+            p: arm.measure(q).unwrap().p,
         })
         .collect();
     let opts = DivisionOptions {

@@ -702,3 +702,64 @@ fn a_dry_run_on_the_ideal_rig_reads_the_true_tip_at_every_commanded_pose() {
         .unwrap()
         .ends_with("tip_x_mm,tip_y_mm,tip_z_mm"));
 }
+
+/// Planning mode through the rig: the division asks for every measurement and a dry-run
+/// session (drivers and emulators) makes it; the recording holds each one, and the model from
+/// it meets the demand along the Fig. 6 path.
+#[test]
+fn calibrate_through_a_session_measures_where_the_division_asks() {
+    let dir = tempfile::tempdir().unwrap();
+    let session = dir.path().join("session");
+    let model = dir.path().join("model.json");
+    let run = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_rigcal"))
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let out = run(&[
+        "calibrate",
+        "--rig",
+        "rigs/rv-m2-ideal.toml",
+        "--session",
+        session.to_str().unwrap(),
+        "--sim",
+        "sim/paper-sim.toml",
+        "--accuracy-mm",
+        "0.03",
+        "--out",
+        model.to_str().unwrap(),
+    ]);
+    assert!(out.contains("points asked for"), "{out}");
+    let rig = Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
+    let rec = read(&session, &rig);
+    let asked = rec
+        .rows
+        .iter()
+        .filter(|m| m.region.as_deref() == Some("div") && m.status != Status::Via)
+        .count();
+    assert!(asked >= 40, "{asked} division rows");
+    assert_eq!(rec.measured().count(), asked);
+    let eval = run(&[
+        "evaluate",
+        "--model",
+        model.to_str().unwrap(),
+        "--scenario",
+        "sim/paper-sim.toml",
+    ]);
+    let max_of = |name: &str| -> f64 {
+        eval.lines()
+            .find(|l| l.trim_start().starts_with(name))
+            .and_then(|l| l.split_whitespace().nth(2))
+            .and_then(|v| v.parse().ok())
+            .unwrap_or_else(|| panic!("{name} in {eval}"))
+    };
+    assert!(max_of("uncalibrated") > 0.5, "{eval}");
+    assert!(max_of("fcmac") < 0.03, "{eval}");
+}

@@ -10,7 +10,7 @@ use crate::model::{
 };
 use crate::recording::Recording;
 use crate::rig::Rig;
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand::SeedableRng;
 use std::path::PathBuf;
@@ -25,8 +25,15 @@ pub struct Args {
     #[arg(long, conflicts_with = "scenario")]
     pub recording: Option<PathBuf>,
     /// Planning mode: a simulated-world scenario measures wherever the division asks.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "session")]
     pub scenario: Option<PathBuf>,
+    /// Planning mode through the rig: a measurement session in this new directory measures
+    /// wherever the division asks (the devices of the rig file, or emulators with --sim).
+    #[arg(long, value_name = "DIR", conflicts_with = "recording")]
+    pub session: Option<PathBuf>,
+    /// With --session: a dry run on emulators of this scenario's world (virtual clock).
+    #[arg(long, requires = "session")]
+    pub sim: Option<PathBuf>,
     /// Division space.
     #[arg(long, value_enum, default_value_t = Space::Joint)]
     pub division: Space,
@@ -87,10 +94,65 @@ pub fn run(a: Args) -> Result<()> {
             )?;
             model.save(&a.out)?;
         }
-        _ => bail!("give --recording DIR (offline) or --scenario FILE (planning)"),
+        (None, None) if a.session.is_some() => {
+            let dir = a.session.clone().unwrap_or_default();
+            let model = calibrate_through_session(&rig, &a, &dir)?;
+            model.save(&a.out)?;
+        }
+        _ => bail!("give --recording DIR (offline), --scenario FILE (planning on a simulated world) or --session DIR (planning through the rig)"),
     }
     println!("model written to {}", a.out.display());
     Ok(())
+}
+
+/// Planning mode through a measurement session in `dir`: every measurement the division asks
+/// for is made by the devices (emulated with `--sim`) and recorded there.
+fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Result<ModelFile> {
+    use crate::session::{Session, SessionMeasurer, SessionOptions};
+    let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
+    let (devices, world) = super::session::open_rig(rig, scenario.as_ref(), false)?;
+    let mut opts = SessionOptions::new(dir);
+    opts.seed = a.seed;
+    opts.fsync = !devices.clock.is_virtual();
+    opts.info = crate::recording::SessionInfo {
+        rig: Some(a.rig.display().to_string()),
+        scenario: a.sim.as_ref().map(|p| p.display().to_string()),
+        seed: scenario.as_ref().map(|s| s.seed),
+        notes: Some("rigcal calibrate --session: planning-mode division, the session measures where it asks".into()),
+        ..Default::default()
+    };
+    let mut session = Session::open(rig, devices, world, opts)?;
+    let mut measurer = SessionMeasurer::new(&mut session, rig);
+    let model = calibrate(
+        rig,
+        Mode::Planning(&mut measurer),
+        a,
+        "planning",
+        Some(dir.display().to_string()),
+    );
+    if let Some(e) = measurer.into_error() {
+        return Err(e).context(format!(
+            "the session in {} stopped; its recording keeps every finished point",
+            dir.display()
+        ));
+    }
+    let model = model?;
+    let report = session.finish()?;
+    println!(
+        "session {}: {} points asked for, {} measured, {} skipped, rig time {:.0} s ({:.2} h){}",
+        dir.display(),
+        report.points,
+        report.ok,
+        report.skipped.len(),
+        report.rig_time_s,
+        report.rig_time_s / 3600.0,
+        if a.sim.is_some() {
+            " on the virtual clock"
+        } else {
+            ""
+        }
+    );
+    Ok(model)
 }
 
 /// Runs the division, trains the learner and builds the model file, printing a summary.
@@ -317,9 +379,10 @@ pub(crate) struct WorldMeasurer {
 }
 
 impl crate::division::Measurer for WorldMeasurer {
-    fn measure(&mut self, q: &[f64]) -> Option<nalgebra::Vector3<f64>> {
+    fn measure(&mut self, q: &[f64]) -> Option<crate::identification::Observation> {
         self.seq += 1;
         self.t_s += self.step_s;
-        self.world.measure_at(q, self.t_s, self.seq, 0).position
+        let p = self.world.measure_at(q, self.t_s, self.seq, 0).position?;
+        Some(crate::identification::Observation { q: q.to_vec(), p })
     }
 }

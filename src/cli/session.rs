@@ -68,21 +68,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
-    let scenario = match &a.sim {
-        Some(p) => Some(Scenario::load(p, a.sim_seed)?),
-        None => None,
-    };
-    if let Some(s) = &scenario {
-        if s.rig.name != rig.name || s.rig.instrument != rig.instrument {
-            bail!(
-                "scenario {} assumes rig `{}`, but --rig {} is `{}`",
-                s.path.display(),
-                s.rig.name,
-                a.rig.display(),
-                rig.name
-            );
-        }
-    }
+    let scenario = load_scenario(&rig, &a.rig, a.sim.as_deref(), a.sim_seed)?;
     let seed = a.seed.or(scenario.as_ref().map(|s| s.seed)).unwrap_or(1);
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let plan_path = a.out.join("plan.csv");
@@ -123,17 +109,7 @@ pub fn run(a: Args) -> Result<()> {
     );
     println!("{}", super::plan::describe(&est));
 
-    let (backend, world) = match &scenario {
-        Some(s) => {
-            let (mut setup, world): (SimSetup, _) = SimSetup::from_scenario(s);
-            if a.real_time {
-                setup.clock = RealClock::shared();
-            }
-            (Backend::Simulated(setup), Some(world))
-        }
-        None => (Backend::RigFile, None),
-    };
-    let devices = open_devices(&rig, backend)?;
+    let (devices, world) = open_rig(&rig, scenario.as_ref(), a.real_time)?;
     let virtual_clock = devices.clock.is_virtual();
     let mut opts = SessionOptions::new(&a.out);
     opts.resume = a.resume;
@@ -203,4 +179,50 @@ pub fn run(a: Args) -> Result<()> {
         report.wall.as_secs_f64()
     );
     Ok(())
+}
+
+/// The scenario of a dry run, checked against the rig in use.
+pub(crate) fn load_scenario(
+    rig: &Rig,
+    rig_path: &std::path::Path,
+    sim: Option<&std::path::Path>,
+    sim_seed: Option<u64>,
+) -> Result<Option<Scenario>> {
+    let Some(p) = sim else {
+        return Ok(None);
+    };
+    let s = Scenario::load(p, sim_seed)?;
+    if s.rig.name != rig.name || s.rig.instrument != rig.instrument {
+        bail!(
+            "scenario {} assumes rig `{}`, but --rig {} is `{}`",
+            s.path.display(),
+            s.rig.name,
+            rig_path.display(),
+            rig.name
+        );
+    }
+    Ok(Some(s))
+}
+
+/// The rig's devices: emulators on the scenario's world (virtual clock unless `real_time`), or
+/// what the rig file's `[devices]` says.
+pub(crate) fn open_rig(
+    rig: &Rig,
+    scenario: Option<&Scenario>,
+    real_time: bool,
+) -> Result<(
+    crate::devices::RigDevices,
+    Option<crate::devices::emulators::world_physics::SharedWorld>,
+)> {
+    let (backend, world) = match scenario {
+        Some(s) => {
+            let (mut setup, world): (SimSetup, _) = SimSetup::from_scenario(s);
+            if real_time {
+                setup.clock = RealClock::shared();
+            }
+            (Backend::Simulated(setup), Some(world))
+        }
+        None => (Backend::RigFile, None),
+    };
+    Ok((open_devices(rig, backend)?, world))
 }

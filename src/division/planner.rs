@@ -20,16 +20,17 @@ use crate::identification::identifiability::kappa_eq4;
 use crate::identification::{fit, FitOptions, FitResult, Observation, Prior};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::rig::Rig;
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::DMatrix;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// Something that measures the arm: the simulated world or the rig.
 pub trait Measurer {
-    /// The measured point (world, mm) with the arm commanded to `q`, or None when the
+    /// A measurement with the arm sent to `q`: the joints actually commanded (a controller
+    /// rounds them to its resolution) and the measured point (world, mm); None when the
     /// measurement failed (no contact, out of reach of the instrument).
-    fn measure(&mut self, q: &[f64]) -> Option<Vector3<f64>>;
+    fn measure(&mut self, q: &[f64]) -> Option<Observation>;
 }
 
 /// Where the measurements come from.
@@ -308,9 +309,9 @@ impl Ctx<'_, '_> {
             return;
         };
         for q in chosen {
-            if let Some(p) = m.measure(&q) {
-                let x = self.space.coords(&q);
-                self.data.push((Observation { q, p }, x));
+            if let Some(o) = m.measure(&q) {
+                let x = self.space.coords(&o.q);
+                self.data.push((o, x));
             }
         }
     }
@@ -471,8 +472,8 @@ impl Ctx<'_, '_> {
                 break;
             };
             self.tests_made += 1;
-            if let Some(p) = m.measure(&c.command) {
-                errors.push((p - target).norm());
+            if let Some(o) = m.measure(&c.command) {
+                errors.push((o.p - target).norm());
             }
         }
         errors

@@ -6,14 +6,17 @@
 //!   reference and alternating approach directions; a rig-time estimate.
 //! - [`run`]: registration, then the points; rows appended and flushed before the next motion.
 //! - [`journal`]: the resume state.
+//! - [`measurer`]: planning mode through the rig: the division asks, the session measures.
 
 pub mod journal;
+pub mod measurer;
 pub mod plan;
 pub mod run;
 
 pub use journal::{Journal, JournalError};
+pub use measurer::SessionMeasurer;
 pub use plan::{
     estimate, plan, read_plan, write_plan, ContactSettings, Ordering, Plan, PlanError, PlanOptions,
     PlannedPoint, RigSpeeds, RigTimeEstimate,
 };
-pub use run::{run_session, Progress, SessionError, SessionOptions, SessionReport};
+pub use run::{run_session, Progress, Session, SessionError, SessionOptions, SessionReport};

@@ -268,122 +268,185 @@ fn dev(stage: impl Into<String>) -> impl FnOnce(DeviceError) -> SessionError {
 /// the devices are emulated on a scenario (draws, time base and motion history go through it).
 pub fn run_session(
     rig: &Rig,
-    mut devices: RigDevices,
+    devices: RigDevices,
     world: Option<SharedWorld>,
     points: &[PlannedPoint],
     opts: SessionOptions,
     progress: &Progress,
 ) -> Result<SessionReport, SessionError> {
-    let started = Instant::now();
-    let dir = opts.dir.clone();
-    std::fs::create_dir_all(&dir).map_err(|source| SessionError::Io {
-        path: dir.clone(),
-        source,
-    })?;
-    let csv = dir.join(CSV_FILE);
-    let cfg = rig.devices.clone().unwrap_or_default();
-    devices.arm.home(MOVE).map_err(dev("homing the arm"))?;
-    devices
-        .arm
-        .set_speed(cfg.arm.speed, IO)
-        .map_err(dev("setting the arm speed"))?;
-    // The table's contact speed follows the latency rule; a point sensor needs none.
-    let approach_mm_s = match devices.table_and_panel() {
-        Ok((table, panel)) => {
-            table.enable(IO * 5).map_err(dev("enabling the table"))?;
-            approach_speed(panel.latency(), table.latency(), cfg.panel.max_overshoot_mm)
-        }
-        Err(_) => 0.0,
-    };
-    let joints = rig.chain.joints();
-    let journal = if opts.resume {
-        match Journal::load(&dir) {
-            Ok(j) => Some(j),
-            Err(JournalError::Io { source, .. })
-                if source.kind() == std::io::ErrorKind::NotFound =>
-            {
-                return Err(SessionError::NothingToResume { dir });
+    let mut session = Session::open(rig, devices, world, opts)?;
+    session.r.report.points = points.len();
+    let start_point = session.next_point;
+    for (i, p) in points.iter().enumerate().skip(start_point) {
+        session.measure_point(p, i + 1 == points.len())?;
+        progress.update(i + 1, points.len(), session.r.now_s());
+    }
+    progress.finish();
+    session.finish()
+}
+
+/// An open session: the arm homed, the instrument ready, the recording open, the registration
+/// done (or restored from the journal on a resume). Points are measured one at a time — from a
+/// plan ([`run_session`]) or as a division asks for them in planning mode
+/// ([`SessionMeasurer`](crate::session::SessionMeasurer)); each point's rows are flushed and the
+/// journal committed before the next motion.
+pub struct Session<'a> {
+    r: Runner<'a>,
+    started: Instant,
+    next_point: usize,
+}
+
+impl std::fmt::Debug for Session<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("dir", &self.r.opts.dir)
+            .field("next_point", &self.next_point)
+            .finish_non_exhaustive()
+    }
+}
+
+impl<'a> Session<'a> {
+    /// Opens (or, with `opts.resume`, resumes) a session on `devices`.
+    pub fn open(
+        rig: &'a Rig,
+        mut devices: RigDevices,
+        world: Option<SharedWorld>,
+        opts: SessionOptions,
+    ) -> Result<Self, SessionError> {
+        let started = Instant::now();
+        let dir = opts.dir.clone();
+        std::fs::create_dir_all(&dir).map_err(|source| SessionError::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        let csv = dir.join(CSV_FILE);
+        let cfg = rig.devices.clone().unwrap_or_default();
+        devices.arm.home(MOVE).map_err(dev("homing the arm"))?;
+        devices
+            .arm
+            .set_speed(cfg.arm.speed, IO)
+            .map_err(dev("setting the arm speed"))?;
+        // The table's contact speed follows the latency rule; a point sensor needs none.
+        let approach_mm_s = match devices.table_and_panel() {
+            Ok((table, panel)) => {
+                table.enable(IO * 5).map_err(dev("enabling the table"))?;
+                approach_speed(panel.latency(), table.latency(), cfg.panel.max_overshoot_mm)
             }
-            Err(e) => return Err(e.into()),
-        }
-    } else {
-        if csv.exists() {
-            return Err(SessionError::AlreadyExists { dir });
-        }
-        None
-    };
-    let writer = match &journal {
-        Some(j) => {
-            let f = std::fs::OpenOptions::new()
-                .write(true)
-                .open(&csv)
-                .map_err(|source| SessionError::Io {
+            Err(_) => 0.0,
+        };
+        let joints = rig.chain.joints();
+        let journal = if opts.resume {
+            match Journal::load(&dir) {
+                Ok(j) => Some(j),
+                Err(JournalError::Io { source, .. })
+                    if source.kind() == std::io::ErrorKind::NotFound =>
+                {
+                    return Err(SessionError::NothingToResume { dir });
+                }
+                Err(e) => return Err(e.into()),
+            }
+        } else {
+            if csv.exists() {
+                return Err(SessionError::AlreadyExists { dir });
+            }
+            None
+        };
+        let writer = match &journal {
+            Some(j) => {
+                let f = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&csv)
+                    .map_err(|source| SessionError::Io {
+                        path: csv.clone(),
+                        source,
+                    })?;
+                f.set_len(j.csv_bytes).map_err(|source| SessionError::Io {
                     path: csv.clone(),
                     source,
                 })?;
-            f.set_len(j.csv_bytes).map_err(|source| SessionError::Io {
-                path: csv.clone(),
-                source,
-            })?;
-            RecordingWriter::open_append(&csv, joints, &[])?.0
+                RecordingWriter::open_append(&csv, joints, &[])?.0
+            }
+            None => RecordingWriter::create(&csv, joints, &[])?,
         }
-        None => RecordingWriter::create(&csv, joints, &[])?,
-    }
-    .sync_each_row(opts.fsync);
-    let mut r = Runner {
-        rig,
-        world,
-        writer,
-        csv,
-        seq: 1,
-        rows: 0,
-        offset_s: 0.0,
-        registration: Isometry3::identity(),
-        registration_info: None,
-        arm_q: devices.arm.commanded(),
-        table_at: None,
-        pass_region: None,
-        pass_top: None,
-        retract_mm: cfg.table.pass_retract_mm,
-        travel_mm_s: cfg.table.profile_velocity_mm_s,
-        travel_z: match &rig.instrument {
-            crate::rig::Instrument::TablePanel(tp) => tp.travel_mm.z,
-            _ => f64::MAX,
-        },
-        approach_mm_s,
-        report: SessionReport {
-            points: points.len(),
-            ..Default::default()
-        },
-        dev: devices,
-        opts,
-    };
-    let start_point = match journal {
-        Some(j) => r.resume_from(&j)?,
-        None => {
-            r.offset_s = -r.dev.clock.now().as_secs_f64();
-            r.set_time_base();
-            r.commit(0, false)?;
-            r.registration_step()?;
-            r.commit(0, false)?;
-            0
+        .sync_each_row(opts.fsync);
+        let mut r = Runner {
+            rig,
+            world,
+            writer,
+            csv,
+            seq: 1,
+            rows: 0,
+            offset_s: 0.0,
+            registration: Isometry3::identity(),
+            registration_info: None,
+            arm_q: devices.arm.commanded(),
+            table_at: None,
+            pass_region: None,
+            pass_top: None,
+            retract_mm: cfg.table.pass_retract_mm,
+            travel_mm_s: cfg.table.profile_velocity_mm_s,
+            travel_z: match &rig.instrument {
+                crate::rig::Instrument::TablePanel(tp) => tp.travel_mm.z,
+                _ => f64::MAX,
+            },
+            approach_mm_s,
+            report: SessionReport::default(),
+            dev: devices,
+            opts,
+        };
+        let next_point = match journal {
+            Some(j) => r.resume_from(&j)?,
+            None => {
+                r.offset_s = -r.dev.clock.now().as_secs_f64();
+                r.set_time_base();
+                r.commit(0, false)?;
+                r.registration_step()?;
+                r.commit(0, false)?;
+                0
+            }
+        };
+        if next_point > 0 || r.opts.resume {
+            r.report.resumed_at = Some(next_point);
         }
-    };
-    if start_point > 0 || r.opts.resume {
-        r.report.resumed_at = Some(start_point);
+        Ok(Session {
+            r,
+            started,
+            next_point,
+        })
     }
-    for (i, p) in points.iter().enumerate().skip(start_point) {
-        r.point(p)?;
-        r.commit(i + 1, i + 1 == points.len())?;
-        progress.update(i + 1, points.len(), r.now_s());
+
+    /// Points finished so far (including earlier runs of a resumed session).
+    pub fn points_done(&self) -> usize {
+        self.next_point
     }
-    if points.len() <= start_point {
-        r.commit(points.len(), true)?;
+
+    /// Session time now (s): the rig time so far.
+    pub fn rig_time_s(&self) -> f64 {
+        self.r.now_s()
     }
-    progress.finish();
-    r.report.rig_time_s = r.now_s();
-    r.report.wall = started.elapsed();
-    Ok(r.report)
+
+    /// Measures `p` (or writes why it cannot be), then commits the journal; `last` marks the
+    /// session finished in it. Returns the joints the arm was commanded to (after the
+    /// controller's resolution) with the measured position (world, mm); `None` for a skip.
+    pub fn measure_point(
+        &mut self,
+        p: &PlannedPoint,
+        last: bool,
+    ) -> Result<Option<Observation>, SessionError> {
+        let measured = self.r.point(p)?;
+        self.next_point += 1;
+        self.r.report.points = self.r.report.points.max(self.next_point);
+        self.r.commit(self.next_point, last)?;
+        Ok(measured)
+    }
+
+    /// Ends the session: the journal marked finished, the report with the rig and wall time.
+    pub fn finish(mut self) -> Result<SessionReport, SessionError> {
+        self.r.commit(self.next_point, true)?;
+        self.r.report.rig_time_s = self.r.now_s();
+        self.r.report.wall = self.started.elapsed();
+        Ok(self.r.report)
+    }
 }
 
 impl Runner<'_> {
@@ -886,11 +949,13 @@ impl Runner<'_> {
         }
     }
 
-    fn point(&mut self, p: &PlannedPoint) -> Result<(), SessionError> {
+    /// Measures one point and writes its rows; the commanded joints and measured position.
+    fn point(&mut self, p: &PlannedPoint) -> Result<Option<Observation>, SessionError> {
         if let Err(reason) = self.rig.measurable(&p.q) {
             let m = self.row(p.q.clone(), &p.region, Status::Skipped(reason.to_string()));
             self.report.skipped.push((p.point, reason.to_string()));
-            return self.write(m);
+            self.write(m)?;
+            return Ok(None);
         }
         let (q, out) = if self.dev.has_table() {
             let target = self.registered_table_target(&p.q).unwrap_or(p.table_mm);
@@ -898,28 +963,32 @@ impl Runner<'_> {
         } else {
             self.sight(p.point, &p.region, &p.q)?
         };
-        match out {
+        let m = match out {
             Outcome::Seen(reading) => {
                 let mut m = self.row(q, &p.region, Status::Ok);
                 m.position = Some(Vector3::from(reading));
-                self.report.ok += 1;
-                self.write(m)
+                m
             }
             Outcome::Measured(c) => {
                 let t = Vector3::from(c.point_table_mm());
                 let mut m = self.row(q, &p.region, Status::Ok);
                 m.table = Some(t);
                 m.panel_uv = Some([c.touch.u_mm, c.touch.v_mm]);
-                m.position = Some(self.registration * nalgebra::Point3::from(t)).map(|p| p.coords);
-                self.report.ok += 1;
-                self.write(m)
+                m.position = Some((self.registration * nalgebra::Point3::from(t)).coords);
+                m
             }
             Outcome::Skipped(reason) => {
                 let m = self.row(q, &p.region, Status::Skipped(reason.clone()));
                 self.report.skipped.push((p.point, reason));
-                self.write(m)
+                m
             }
+        };
+        let measured = m.position.map(|p| Observation { q: m.q.clone(), p });
+        if measured.is_some() {
+            self.report.ok += 1;
         }
+        self.write(m)?;
+        Ok(measured)
     }
 
     /// Measures random reachable poses with the nominal kinematics and fits the table-to-world
