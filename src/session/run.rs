@@ -713,22 +713,8 @@ impl Runner<'_> {
         let via_z = crate::session::plan::table_target(self.rig, &via)
             .map_or(start[2], |t| t[2] - c.margin_mm);
         let via_start = [start[0], start[1], start[2].min(via_z).max(0.0)];
-        let mut attempt = 0u32;
-        loop {
-            self.set_draws(self.seq, attempt);
-            match self.travel(&via, via_start) {
-                Ok(done) => {
-                    let m = self.row(done, region, Status::Via);
-                    self.write(m)?;
-                    self.report.via += 1;
-                    break;
-                }
-                Err(e) => {
-                    if let Some(out) = self.handle(&e, &mut attempt, "moving to the via pose")? {
-                        return Ok((q.to_vec(), out));
-                    }
-                }
-            }
+        if let Some(out) = self.via_move(region, |r| r.travel(&via, via_start))? {
+            return Ok((q.to_vec(), out));
         }
         // 2. The target, then the contact.
         let mut attempt = 0u32;
@@ -841,6 +827,33 @@ impl Runner<'_> {
         }
     }
 
+    /// The move to a point's via pose by `step` (the arm alone, or arm and table together),
+    /// retried like any device error, and its `via` row; `Some` when the point is given up.
+    fn via_move(
+        &mut self,
+        region: &str,
+        mut step: impl FnMut(&mut Self) -> Result<Vec<f64>, DeviceError>,
+    ) -> Result<Option<Outcome>, SessionError> {
+        let mut attempt = 0u32;
+        loop {
+            self.set_draws(self.seq, attempt);
+            match step(self) {
+                Ok(done) => {
+                    self.arm_q = Some(done.clone());
+                    let m = self.row(done, region, Status::Via);
+                    self.write(m)?;
+                    self.report.via += 1;
+                    return Ok(None);
+                }
+                Err(e) => {
+                    if let Some(out) = self.handle(&e, &mut attempt, "moving to the via pose")? {
+                        return Ok(Some(out));
+                    }
+                }
+            }
+        }
+    }
+
     /// Decides about an error: Ok(None) to retry, Ok(Some(skip)) to give up the point, Err to
     /// stop the session.
     fn handle(
@@ -905,23 +918,8 @@ impl Runner<'_> {
     ) -> Result<(Vec<f64>, Outcome), SessionError> {
         let signs = approach_signs(self.rig, point);
         let via = via_pose(self.rig, q, &signs, self.opts.contact.via_delta);
-        let mut attempt = 0u32;
-        loop {
-            self.set_draws(self.seq, attempt);
-            match self.dev.arm.move_to(&via, MOVE) {
-                Ok(done) => {
-                    self.arm_q = Some(done.clone());
-                    let m = self.row(done, region, Status::Via);
-                    self.write(m)?;
-                    self.report.via += 1;
-                    break;
-                }
-                Err(e) => {
-                    if let Some(out) = self.handle(&e, &mut attempt, "moving to the via pose")? {
-                        return Ok((q.to_vec(), out));
-                    }
-                }
-            }
+        if let Some(out) = self.via_move(region, |r| r.dev.arm.move_to(&via, MOVE))? {
+            return Ok((q.to_vec(), out));
         }
         let mut attempt = 0u32;
         let mut commanded: Option<Vec<f64>> = None;
