@@ -24,6 +24,7 @@ pub mod identification;
 pub mod kinematics;
 pub mod learners;
 pub mod model;
+pub mod neural;
 pub mod protocols;
 pub mod recording;
 pub mod report;
