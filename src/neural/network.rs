@@ -264,21 +264,9 @@ impl Network {
     /// fraction, that share of the patterns (chosen from the seed) is held out, training stops
     /// after `patience` epochs without improvement, and the best-validation weights are restored.
     pub fn train(&mut self, x: &DMatrix<f64>, t: &DMatrix<f64>, cfg: &TrainConfig) -> TrainOutcome {
-        let n = x.ncols();
-        let n_val = if cfg.validation_fraction > 0.0 && n >= 4 {
-            ((n as f64 * cfg.validation_fraction).round() as usize).clamp(1, n - 2)
-        } else {
-            0
-        };
-        let mut order: Vec<usize> = (0..n).collect();
-        if n_val > 0 {
-            let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_0001);
-            for i in (1..n).rev() {
-                let j = rng.gen_range(0..=i);
-                order.swap(i, j);
-            }
-        }
-        let (val_idx, train_idx) = order.split_at(n_val);
+        let (val_idx, train_idx) = validation_split(x.ncols(), cfg);
+        let (val_idx, train_idx) = (val_idx.as_slice(), train_idx.as_slice());
+        let n_val = val_idx.len();
         let pick = |m: &DMatrix<f64>, idx: &[usize]| {
             DMatrix::from_fn(m.nrows(), idx.len(), |r, c| m[(r, idx[c])])
         };
@@ -384,6 +372,27 @@ impl Network {
             history,
         }
     }
+}
+
+/// The patterns held out for early stopping and those trained on (indices), as
+/// [`Network::train`] splits `n` patterns: a seeded shuffle, the first
+/// round(n · validation_fraction) held out.
+pub fn validation_split(n: usize, cfg: &TrainConfig) -> (Vec<usize>, Vec<usize>) {
+    let n_val = if cfg.validation_fraction > 0.0 && n >= 4 {
+        ((n as f64 * cfg.validation_fraction).round() as usize).clamp(1, n - 2)
+    } else {
+        0
+    };
+    let mut order: Vec<usize> = (0..n).collect();
+    if n_val > 0 {
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_0001);
+        for i in (1..n).rev() {
+            let j = rng.gen_range(0..=i);
+            order.swap(i, j);
+        }
+    }
+    let train = order.split_off(n_val);
+    (order, train)
 }
 
 fn row_sums(m: &DMatrix<f64>) -> DVector<f64> {

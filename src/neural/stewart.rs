@@ -133,7 +133,7 @@ impl Stewart {
         let mut residual = f64::INFINITY;
         for _ in 0..50 {
             let l = self.leg_lengths(&s);
-            let r = DVector::from_fn(6, |i, _| l[i] + self.leg_offset[i] - q[i]);
+            let r = DVector::from_fn(6, |i, _| l[i] - self.leg_offset[i] - q[i]);
             residual = r.amax();
             if residual <= tolerance_mm {
                 return Ok(s);
