@@ -410,7 +410,11 @@ fn run_neural(rig: &Rig, a: &Args) -> Result<()> {
             let rec = sc.world().record(&poses, 0);
             (
                 super::observations(&rec),
-                Some(format!("scenario {}, {} random poses", scenario.display(), a.measurements)),
+                Some(format!(
+                    "scenario {}, {} random poses",
+                    scenario.display(),
+                    a.measurements
+                )),
             )
         }
         _ => bail!("give --recording DIR or --scenario FILE"),

@@ -172,10 +172,19 @@ pub fn run(a: Args) -> Result<()> {
         train_s: t0.elapsed().as_secs_f64(),
     });
     // Variable D-H model with FCMAC, offline on the same measurements.
-    println!("== variable D-H model (seed 000), offline division at {} mm", a.accuracy_mm);
+    println!(
+        "== variable D-H model (seed 000), offline division at {} mm",
+        a.accuracy_mm
+    );
     let t0 = Instant::now();
     let ca = cal_args(&a, LearnerKind::Fcmac, PathBuf::from("-"));
-    let vfile = calibrate::calibrate(&rig, Mode::Offline(&obs), &ca, "offline", Some(source.clone()))?;
+    let vfile = calibrate::calibrate(
+        &rig,
+        Mode::Offline(&obs),
+        &ca,
+        "offline",
+        Some(source.clone()),
+    )?;
     let vt = t0.elapsed().as_secs_f64();
     let vmeas = match &vfile.model {
         crate::model::ModelBody::Variable { division, .. } => division.measurements,
@@ -212,7 +221,10 @@ pub fn run(a: Args) -> Result<()> {
     // Validation errors.
     let stats = |v: &[f64]| -> (f64, f64) {
         let n = v.len().max(1) as f64;
-        (v.iter().sum::<f64>() / n, v.iter().copied().fold(0.0, f64::max))
+        (
+            v.iter().sum::<f64>() / n,
+            v.iter().copied().fold(0.0, f64::max),
+        )
     };
     let mut rows = Vec::new();
     for m in &methods {
@@ -238,8 +250,20 @@ pub fn run(a: Args) -> Result<()> {
             .collect();
         for p in &a.paths {
             let spec = match p.as_str() {
-                "fig6" => joint_path(&rig, "Fig. 6 joint path", &[60.0, 60.0, -35.0], &[125.0, 90.0, -10.0], 101),
-                "fig7" => spherical_path(&rig, "Fig. 7 spherical path", [640.0, 20.0, 0.0], [740.0, 125.0, -20.0], 101)?,
+                "fig6" => joint_path(
+                    &rig,
+                    "Fig. 6 joint path",
+                    &[60.0, 60.0, -35.0],
+                    &[125.0, 90.0, -10.0],
+                    101,
+                ),
+                "fig7" => spherical_path(
+                    &rig,
+                    "Fig. 7 spherical path",
+                    [640.0, 20.0, 0.0],
+                    [740.0, 125.0, -20.0],
+                    101,
+                )?,
                 other => bail!("unknown path `{other}`: use fig6 or fig7"),
             };
             path_results.push((p.clone(), evaluate_path(&rig, &spec, &refs, &truth, &[])));
@@ -270,7 +294,9 @@ pub fn run(a: Args) -> Result<()> {
             m.name, m.measurements, m.train_s
         );
         for (_, res) in &path_results {
-            let r = res.iter().find(|r| r.model == m.name || (k == 0 && r.model == "uncalibrated"));
+            let r = res
+                .iter()
+                .find(|r| r.model == m.name || (k == 0 && r.model == "uncalibrated"));
             match r {
                 Some(r) => {
                     let s = r.stats();
@@ -292,7 +318,11 @@ pub fn run(a: Args) -> Result<()> {
         std::fs::write(&f, &md).with_context(|| format!("cannot write {}", f.display()))?;
         for (p, res) in &path_results {
             let svg = dir.join(format!("compare-{p}.svg"));
-            plot_errors(&svg, &format!("position error along {p}: three calibrations"), res)?;
+            plot_errors(
+                &svg,
+                &format!("position error along {p}: three calibrations"),
+                res,
+            )?;
             println!("plot: {}", svg.display());
         }
         println!("table: {}", f.display());

@@ -107,15 +107,13 @@ pub fn newton_inverse(
             return Ok(q);
         }
         let j = k.jacobian(&q)?;
-        let dq = j
-            .clone()
-            .svd(true, true)
-            .solve(&r, 1e-12)
-            .map_err(|_| KinematicsError::NoConvergence {
+        let dq = j.clone().svd(true, true).solve(&r, 1e-12).map_err(|_| {
+            KinematicsError::NoConvergence {
                 what: "Newton–Raphson inverse",
                 iterations: it,
                 residual,
-            })?;
+            }
+        })?;
         for (qi, d) in q.iter_mut().zip(dq.iter()) {
             *qi += d;
         }

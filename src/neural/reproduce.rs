@@ -295,7 +295,11 @@ pub fn table5(o: &ReproOptions) -> Result<Table, NeuralError> {
             t.values
                 .push((format!("case {case} scheme {}", scheme.number()), e, paper));
         }
-        t.values.push((format!("case {case} E_ave before"), before.mean, paper_before[c][0]));
+        t.values.push((
+            format!("case {case} E_ave before"),
+            before.mean,
+            paper_before[c][0],
+        ));
     }
     for (label, vals) in &rows {
         let _ = write!(text, "  {label:<26}");
@@ -322,6 +326,16 @@ pub fn table5(o: &ReproOptions) -> Result<Table, NeuralError> {
         "working area α 0..180°, β 50..155°; P1, P2 at the middles of the links (not in the paper)".into(),
     ];
     Ok(t)
+}
+
+fn random_label(scale: f64) -> &'static str {
+    if scale >= 1.0 {
+        "δLr"
+    } else if scale > 0.0 {
+        "δLr/2"
+    } else {
+        "δLr=0"
+    }
 }
 
 fn fmt_stats(s: ErrorStats) -> String {
@@ -366,7 +380,15 @@ pub fn table7(o: &ReproOptions) -> Result<Table, NeuralError> {
     let _ = writeln!(
         text,
         "  {:<10} {:>3}  {:>15} {:>15} {:>6}   {:>15} {:>15} {:>6}  {:>7}",
-        "scheme", "HN", "E_ap mean max", "E_ac mean max", "FI", "paper E_ap", "paper E_ac", "FI", "train s"
+        "scheme",
+        "HN",
+        "E_ap mean max",
+        "E_ac mean max",
+        "FI",
+        "paper E_ap",
+        "paper E_ac",
+        "FI",
+        "train s"
     );
     for (scheme, hn, paper) in runs {
         let r = run_scheme(
@@ -400,7 +422,8 @@ pub fn table7(o: &ReproOptions) -> Result<Table, NeuralError> {
             .push((format!("{} E_ap mean", scheme.name()), ap.mean, paper[0]));
         t.values
             .push((format!("{} E_ac mean", scheme.name()), ac.mean, paper[2]));
-        t.values.push((format!("{} FI", scheme.name()), fi, paper[4]));
+        t.values
+            .push((format!("{} FI", scheme.name()), fi, paper[4]));
     }
     t.text = text;
     t.notes = vec![
@@ -423,8 +446,6 @@ pub fn stewart_samples(
     rng: &mut ChaCha8Rng,
 ) -> Result<Vec<Sample>, NeuralError> {
     let nominal = Stewart::nominal();
-    let zero = [0.0; 48];
-    let _ = zero;
     (0..n)
         .map(|index| {
             let kin = |source| NeuralError::Kinematics { index, source };
@@ -448,7 +469,9 @@ pub fn stewart_samples(
 pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
     let nominal = Stewart::nominal();
     let mut t = Table {
-        title: "Tables 10–12: Stewart platform, inverse schemes 2 and 4, validation set (mean / max)".into(),
+        title:
+            "Tables 10–12: Stewart platform, inverse schemes 2 and 4, validation set (mean / max)"
+                .into(),
         ..Table::default()
     };
     let mut text = String::new();
@@ -481,13 +504,25 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
     let _ = writeln!(
         text,
         "  {:<16} {:<8} {:>15} {:>15} {:>15} {:>15} {:>6} {:>6}   paper: {:>11} {:>11} {:>5} {:>5}",
-        "errors", "scheme", "xyz ap (mm)", "ang ap (mrad)", "xyz ac (mm)", "ang ac (mrad)", "FIxyz", "FIang",
-        "xyz ap", "xyz ac", "FIxyz", "FIang"
+        "errors",
+        "scheme",
+        "xyz ap (mm)",
+        "ang ap (mrad)",
+        "xyz ac (mm)",
+        "ang ac (mrad)",
+        "FIxyz",
+        "FIang",
+        "xyz ap",
+        "xyz ac",
+        "FIxyz",
+        "FIang"
     );
     let mut k = 0;
     for (ci, cscale) in [(0, 1.0), (1, 0.5)] {
         let mut rng = ChaCha8Rng::seed_from_u64(o.seed.wrapping_add(1100 + ci));
-        let constant = StewartErrors::table9_constant().scaled(cscale).draw(&mut rng);
+        let constant = StewartErrors::table9_constant()
+            .scaled(cscale)
+            .draw(&mut rng);
         let real = nominal.perturbed(&constant);
         for rscale in [1.0, 0.5, 0.0] {
             let random = StewartErrors::table9_random().scaled(rscale);
@@ -497,11 +532,7 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
             let label = format!(
                 "{} {}",
                 if ci == 0 { "δLc" } else { "δLc/2" },
-                match rscale {
-                    r if r == 1.0 => "δLr",
-                    r if r == 0.5 => "δLr/2",
-                    _ => "δLr=0",
-                }
+                random_label(rscale)
             );
             let bx = ErrorStats::of(&before, 0..3, 1.0);
             let ba = ErrorStats::of(&before, 3..6, 1e3);
@@ -535,7 +566,8 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
                 let aca = ErrorStats::of(&r.val_ac, 3..6, 1e3);
                 let fx = filtering_index(acx.mean, erx.mean);
                 let fa = filtering_index(aca.mean, era.mean);
-                let pct = |f: Option<f64>| f.map_or("-".to_string(), |v| format!("{:.0}%", v * 100.0));
+                let pct =
+                    |f: Option<f64>| f.map_or("-".to_string(), |v| format!("{:.0}%", v * 100.0));
                 let _ = writeln!(
                     text,
                     "  {:<16} {:<8} {} {} {} {} {:>6} {:>6}   paper: {:>5.3} {:>5.3} {:>5.3} {:>5.3}",
@@ -552,8 +584,16 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
                     paper[4],
                     paper[5]
                 );
-                t.values.push((format!("{label} {} xyz ac mean", scheme.name()), acx.mean, paper[4]));
-                t.values.push((format!("{label} {} ang ac mean", scheme.name()), aca.mean, paper[6]));
+                t.values.push((
+                    format!("{label} {} xyz ac mean", scheme.name()),
+                    acx.mean,
+                    paper[4],
+                ));
+                t.values.push((
+                    format!("{label} {} ang ac mean", scheme.name()),
+                    aca.mean,
+                    paper[6],
+                ));
             }
             k += 1;
         }
@@ -601,7 +641,8 @@ pub fn scara3_samples(
 pub fn table18(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
     let (_, nominal) = scara3::nominal()?;
     let mut t = Table {
-        title: "Tables 16–18: 3-DOF SCARA, direct calibration, validation set (mm, mean / max)".into(),
+        title: "Tables 16–18: 3-DOF SCARA, direct calibration, validation set (mm, mean / max)"
+            .into(),
         ..Table::default()
     };
     let mut text = String::new();
@@ -645,11 +686,7 @@ pub fn table18(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
             let label = format!(
                 "{} {}",
                 if ci == 0 { "δLc" } else { "δLc/2" },
-                match rscale {
-                    r if r == 1.0 => "δLr",
-                    r if r == 0.5 => "δLr/2",
-                    _ => "δLr=0",
-                }
+                random_label(rscale)
             );
             let before = norms(&nominal_errors(&nominal, &val));
             let er = norms(&random_vecs(&val));
@@ -681,8 +718,13 @@ pub fn table18(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
                 let ap = norms(&r.val_ap);
                 let ac = norms(&r.val_ac);
                 let fi = filtering_index(ac.mean, er.mean);
-                let pct = |f: Option<f64>| f.map_or("-".to_string(), |v| format!("{:.0}%", v * 100.0));
-                let ppct = if paper[4].is_nan() { "-".to_string() } else { format!("{:.0}%", paper[4] * 100.0) };
+                let pct =
+                    |f: Option<f64>| f.map_or("-".to_string(), |v| format!("{:.0}%", v * 100.0));
+                let ppct = if paper[4].is_nan() {
+                    "-".to_string()
+                } else {
+                    format!("{:.0}%", paper[4] * 100.0)
+                };
                 let _ = writeln!(
                     text,
                     "  {:<14} {:<20} {} {} {:>6}   paper: {:>5.2} {:>5.2} {:>5.2} {:>5.2} {:>5}",
@@ -697,7 +739,11 @@ pub fn table18(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
                     paper[3],
                     ppct
                 );
-                t.values.push((format!("{label} {} E_ac mean", scheme.name()), ac.mean, paper[2]));
+                t.values.push((
+                    format!("{label} {} E_ac mean", scheme.name()),
+                    ac.mean,
+                    paper[2],
+                ));
             }
             k += 1;
         }

@@ -133,7 +133,11 @@ impl ErrorModel for NeuralErrorModel {
     fn params_at(&self, q: &[f64]) -> ErrorParams {
         let qm: Vec<f64> = self.moving.iter().map(|&j| q[j]).collect();
         let d = self.nk.correction(&qm);
-        let sign = if self.nk.scheme.is_direct() { 1.0 } else { -1.0 };
+        let sign = if self.nk.scheme.is_direct() {
+            1.0
+        } else {
+            -1.0
+        };
         let mut e = ErrorParams::from_vector(nalgebra::DVector::zeros(self.n_params));
         if self.nk.scheme.corrects_joints() {
             for (k, &p) in self.joint_params.iter().enumerate() {

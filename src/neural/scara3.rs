@@ -125,7 +125,9 @@ impl Scara3Real {
         let rx = |a: f64| UnitQuaternion::from_axis_angle(&Vector3::x_axis(), a);
         let ry = |a: f64| UnitQuaternion::from_axis_angle(&Vector3::y_axis(), a);
         let rz = |a: f64| UnitQuaternion::from_axis_angle(&Vector3::z_axis(), a);
-        let tr = |x: f64, y: f64, z: f64| Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity());
+        let tr = |x: f64, y: f64, z: f64| {
+            Isometry3::from_parts(Translation3::new(x, y, z), UnitQuaternion::identity())
+        };
         let rot = |u: UnitQuaternion<f64>| Isometry3::from_parts(Translation3::identity(), u);
         let m = tr(e[0], e[1], 0.0)
             * rot(rx(e[2]) * ry(e[3]))

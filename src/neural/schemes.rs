@@ -99,6 +99,9 @@ pub struct Sample {
     pub s_true: Option<Vec<f64>>,
 }
 
+/// Apparent error vectors, and actual ones where the truth is known, per sample.
+pub type ErrorVectors = (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>);
+
 /// A trained neuro-kinematic model: scheme, scalings and network.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct NkModel {
@@ -344,7 +347,7 @@ impl NkModel {
         &self,
         nominal: &dyn Kinematics,
         data: &[Sample],
-    ) -> Result<(Vec<Vec<f64>>, Vec<Option<Vec<f64>>>), NeuralError> {
+    ) -> Result<ErrorVectors, NeuralError> {
         let mut ap = Vec::with_capacity(data.len());
         let mut ac = Vec::with_capacity(data.len());
         let pa = |i: usize| self.pose_angle[i];

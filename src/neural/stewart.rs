@@ -71,7 +71,11 @@ impl Stewart {
         });
         let platform = std::array::from_fn(|i| {
             let a = (30.0 + 120.0 * (i / 2) as f64).to_radians();
-            Vector3::new(PLATFORM_RADIUS_MM * a.cos(), PLATFORM_RADIUS_MM * a.sin(), 0.0)
+            Vector3::new(
+                PLATFORM_RADIUS_MM * a.cos(),
+                PLATFORM_RADIUS_MM * a.sin(),
+                0.0,
+            )
         });
         Self {
             base,
