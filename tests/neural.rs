@@ -312,3 +312,23 @@ fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
         assert!(after < 0.5 * before, "{scheme:?}: {after} vs {before}");
     }
 }
+
+#[test]
+fn scara2_rig_file_is_the_closed_form_nominal() {
+    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/scara2.toml")).expect("rig");
+    let kin = rigcal::neural::SerialKinematics::new(rig.chain.clone(), rig.held());
+    let closed = Scara2::default();
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    for _ in 0..20 {
+        let q = vec![
+            rng.gen_range(0.0f64..180.0).to_radians(),
+            rng.gen_range(50.0f64..155.0).to_radians(),
+        ];
+        let a = kin.forward(&q).expect("fk");
+        let b = closed.forward(&q).expect("fk");
+        assert!((a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9 && a[2].abs() < 1e-9);
+        // Closed-form inverse on the same elbow branch.
+        let back = closed.inverse(&b, &q).expect("ik");
+        assert!((back[0] - q[0]).abs() < 1e-9 && (back[1] - q[1]).abs() < 1e-9);
+    }
+}
