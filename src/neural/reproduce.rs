@@ -505,7 +505,7 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
     ];
     let _ = writeln!(
         text,
-        "  {:<16} {:<8} {:>15} {:>15} {:>15} {:>15} {:>6} {:>6}   paper: {:>11} {:>11} {:>5} {:>5}",
+        "  {:<16} {:<8} {:>15} {:>15} {:>15} {:>15} {:>6} {:>6}   paper: {:>11} {:>11}",
         "errors",
         "scheme",
         "xyz ap (mm)",
@@ -515,9 +515,7 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
         "FIxyz",
         "FIang",
         "xyz ap",
-        "xyz ac",
-        "FIxyz",
-        "FIang"
+        "xyz ac"
     );
     let mut k = 0;
     for (ci, cscale) in [(0, 1.0), (1, 0.5)] {
