@@ -11,6 +11,7 @@
 //! | [`identification`] | identifiability, least squares, registration |
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
 //! | [`model`] | the versioned model file |
+//! | [`neural`] | neuro-kinematic calibration (seed 001): network, schemes, the paper's robots |
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
 //! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
@@ -24,6 +25,7 @@ pub mod identification;
 pub mod kinematics;
 pub mod learners;
 pub mod model;
+pub mod neural;
 pub mod protocols;
 pub mod recording;
 pub mod report;

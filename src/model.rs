@@ -147,6 +147,13 @@ pub enum ModelBody {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         learner: Option<Learner>,
     },
+    /// A neuro-kinematic model (seed 001): a network beside the nominal kinematics, scheme 2
+    /// (joint correction) or 4 (position correction), direct or inverse; see
+    /// [`crate::neural::rig_model`] for how it acts as an error model.
+    Neural {
+        /// The network and how it was trained.
+        network: crate::neural::rig_model::NeuralModel,
+    },
 }
 
 /// How a division was made.
@@ -290,6 +297,17 @@ impl ModelFile {
     /// the learner (if any), then the regions, then the conventional parameters.
     pub fn error_models(&self, rig: &Rig, path: &Path) -> Result<Vec<NamedModel>, ModelError> {
         match &self.model {
+            ModelBody::Neural { network } => {
+                let m = crate::neural::rig_model::NeuralErrorModel::new(network.nk.clone(), rig)
+                    .map_err(|e| ModelError::Format {
+                        path: path.to_path_buf(),
+                        reason: e.to_string(),
+                    })?;
+                Ok(vec![(
+                    format!("nn-{}", network.nk.scheme.name()),
+                    Box::new(m),
+                )])
+            }
             ModelBody::Constant { parameters, .. } => Ok(vec![(
                 "conventional".into(),
                 Box::new(params_from_entries(rig, parameters, path)?),

@@ -60,6 +60,25 @@ pub struct Args {
     /// and the learner must generalise there (seed 000 Fig. 8).
     #[arg(long, allow_hyphen_values = true, value_name = "A,B,C")]
     pub unmeasurable_at: Option<String>,
+    /// Neural learners (`nn-direct`, `nn-inverse`): the scheme of seed 001, 2 (joint
+    /// correction) or 4 (position correction). 4 is the default for arms: a joint correction
+    /// computed by inverse kinematics blows up near singular poses (the stretched RV-M2).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(2..=4))]
+    pub scheme: u8,
+    /// Neural learners: hidden neurons.
+    #[arg(long, default_value_t = 20)]
+    pub hidden: usize,
+    /// Neural learners: most epochs of batch back-propagation.
+    #[arg(long, default_value_t = 3000)]
+    pub epochs: usize,
+    /// Neural learners: learning rate η on the batch-summed gradient [default: 0.46 / number
+    /// of training poses, the paper's η = 0.01 at its 46 poses].
+    #[arg(long)]
+    pub learning_rate: Option<f64>,
+    /// Neural learners: with `--scenario`, the number of random poses measured (the paper's
+    /// 110 regions × 20).
+    #[arg(long, default_value_t = 2200)]
+    pub measurements: usize,
     /// Where to write the model (JSON).
     #[arg(long)]
     pub out: PathBuf,
@@ -67,6 +86,9 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
+    if matches!(a.learner, LearnerKind::NnDirect | LearnerKind::NnInverse) {
+        return run_neural(&rig, &a);
+    }
     match (&a.recording, &a.scenario) {
         (Some(dir), None) => {
             let rec = Recording::read(dir, crate::kinematics::Robot::joints(&rig.chain))?;
@@ -385,4 +407,99 @@ impl crate::division::Measurer for WorldMeasurer {
         let p = self.world.measure_at(q, self.t_s, self.seq, 0).position?;
         Some(crate::identification::Observation { q: q.to_vec(), p })
     }
+}
+
+/// The network settings of `calibrate --learner nn-*` for `n` observations.
+pub(crate) fn neural_config(a: &Args, n: usize) -> crate::neural::TrainConfig {
+    crate::neural::TrainConfig {
+        method: crate::neural::network::Method::Momentum,
+        hidden: a.hidden,
+        learning_rate: a.learning_rate.unwrap_or(0.46 / (0.8 * n.max(1) as f64)),
+        momentum: 0.9,
+        epochs: a.epochs,
+        validation_fraction: 0.2,
+        patience: (a.epochs / 5).max(100),
+        seed: a.seed,
+    }
+}
+
+/// The neural scheme of `--learner` and `--scheme`.
+pub(crate) fn neural_scheme(a: &Args) -> Result<crate::neural::Scheme> {
+    use crate::neural::Scheme;
+    Ok(match (a.learner, a.scheme) {
+        (LearnerKind::NnDirect, 2) => Scheme::Direct2,
+        (LearnerKind::NnDirect, 4) => Scheme::Direct4,
+        (LearnerKind::NnInverse, 2) => Scheme::Inverse2,
+        (LearnerKind::NnInverse, 4) => Scheme::Inverse4,
+        (_, s) => bail!("--scheme {s}: use 2 or 4 with --learner nn-direct or nn-inverse"),
+    })
+}
+
+/// Trains a neural model on the rig's measurements and builds its model file.
+pub(crate) fn neural_model(
+    rig: &Rig,
+    obs: &[crate::identification::Observation],
+    a: &Args,
+    source: Option<String>,
+) -> Result<ModelFile> {
+    let scheme = neural_scheme(a)?;
+    let cfg = neural_config(a, obs.len());
+    let (network, outcome) = crate::neural::rig_model::train_on_rig(rig, obs, scheme, &cfg)?;
+    println!(
+        "neural {} scheme {} ({} hidden, η {:.2e}, momentum {}): {} epochs, kept epoch {}, training RMS {:.4} (scaled), early-stopping RMS {:.4}; {:.2} s",
+        if scheme.is_direct() { "direct" } else { "inverse" },
+        scheme.number(),
+        cfg.hidden,
+        cfg.learning_rate,
+        cfg.momentum,
+        outcome.epochs,
+        outcome.best_epoch,
+        outcome.train_rms,
+        outcome.validation_rms.unwrap_or(f64::NAN),
+        network.train_seconds
+    );
+    Ok(ModelFile::new(
+        rig,
+        Provenance {
+            recording: source,
+            measurements: obs.len(),
+            notes: Some(format!("neural scheme {}, seed {}", scheme.name(), a.seed)),
+        },
+        ModelBody::Neural { network },
+    ))
+}
+
+fn run_neural(rig: &Rig, a: &Args) -> Result<()> {
+    let (obs, source) = match (&a.recording, &a.scenario) {
+        (Some(dir), None) => {
+            let rec = Recording::read(dir, crate::kinematics::Robot::joints(&rig.chain))?;
+            (super::observations(&rec), Some(dir.display().to_string()))
+        }
+        (None, Some(scenario)) => {
+            let sc = crate::world::Scenario::load(scenario, None)?;
+            let poses = random_poses(
+                crate::kinematics::Robot::joints(&rig.chain),
+                rig.held(),
+                a.measurements,
+                &mut rand_chacha::ChaCha8Rng::seed_from_u64(a.seed),
+            );
+            let rec = sc.world().record(&poses, 0);
+            (
+                super::observations(&rec),
+                Some(format!(
+                    "scenario {}, {} random poses",
+                    scenario.display(),
+                    a.measurements
+                )),
+            )
+        }
+        _ => bail!("the network learns from --recording DIR or --scenario FILE (--session is planning mode of the variable D-H model: run `rigcal session` first, then --recording)"),
+    };
+    if obs.is_empty() {
+        bail!("no measured rows");
+    }
+    let model = neural_model(rig, &obs, a, source)?;
+    model.save(&a.out)?;
+    println!("model written to {}", a.out.display());
+    Ok(())
 }

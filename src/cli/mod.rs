@@ -1,6 +1,7 @@
 //! The command line: one module per subcommand (clap derive). The only place that uses `anyhow`.
 
 mod calibrate;
+mod compare;
 mod compensate;
 mod demo;
 mod diagnose;
@@ -10,6 +11,7 @@ mod import;
 mod observability;
 mod plan;
 mod register;
+mod reproduce;
 mod rig_cmd;
 mod session;
 mod sim_device;
@@ -66,6 +68,11 @@ enum Command {
     Session(session::Args),
     /// Serve one device's emulator on a pseudo-terminal (prints the port path).
     SimDevice(sim_device::Args),
+    /// Conventional calibration, the variable D-H model with FCMAC and a neural network on the
+    /// same recording and validation set, side by side.
+    Compare(compare::Args),
+    /// Reproduce a paper's tables beside its numbers: `rigcal reproduce seed001 --table 5`.
+    Reproduce(reproduce::Args),
 }
 
 /// Runs the command line and returns the process exit code.
@@ -108,6 +115,8 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::SimDevice(a) => sim_device::run(a),
         Command::Plan(a) => plan::run(a),
         Command::Session(a) => session::run(a),
+        Command::Compare(a) => compare::run(a),
+        Command::Reproduce(a) => reproduce::run(a),
     }
 }
 

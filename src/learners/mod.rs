@@ -134,6 +134,13 @@ pub enum LearnerKind {
     Cmac,
     /// The fuzzy CMAC of seed 000 (default).
     Fcmac,
+    /// Not a CEP learner: a neural network learns the direct kinematics' correction
+    /// (seed 001, [`crate::neural`]); `rigcal calibrate` writes a neural model instead.
+    #[serde(rename = "nn-direct")]
+    NnDirect,
+    /// Not a CEP learner: a neural network learns the inverse kinematics' correction.
+    #[serde(rename = "nn-inverse")]
+    NnInverse,
 }
 
 /// Trains a learner of `kind` on the leaves of `tree`; weights start at `init` (conventional
@@ -146,7 +153,7 @@ pub fn train(kind: LearnerKind, tree: &RegionTree, init: &[f64], scale: &[f64]) 
         crate::division::Space::Cartesian => 1,
     };
     match kind {
-        LearnerKind::None => None,
+        LearnerKind::None | LearnerKind::NnDirect | LearnerKind::NnInverse => None,
         LearnerKind::Fcmac => {
             let config = FcmacConfig::paper(widest);
             let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n - 1));

@@ -1,0 +1,79 @@
+//! Benchmarks of neuro-kinematic training (seed 001): the reproduction's Table 5 network and the
+//! RV-M2 network of `rigcal calibrate --learner nn-direct` / `rigcal compare` on the paper
+//! scenario's 2200 measurements. Run with `cargo bench --bench neural`.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rigcal::identification::{random_poses, Observation};
+use rigcal::kinematics::Robot;
+use rigcal::neural::reproduce::scara2_samples;
+use rigcal::neural::rig_model::train_on_rig;
+use rigcal::neural::scara2::{Scara2, Scara2Errors, Scara2Real};
+use rigcal::neural::{AngularSum, NkModel, Scheme, TrainConfig};
+use std::path::Path;
+
+fn table5_network(c: &mut Criterion) {
+    let nominal = Scara2::default();
+    let real = Scara2Real {
+        nominal,
+        errors: Scara2Errors::case(2),
+    };
+    let lea = scara2_samples(&real, None, 46, &mut ChaCha8Rng::seed_from_u64(1));
+    let cfg = TrainConfig {
+        hidden: 20,
+        epochs: 20_000,
+        ..TrainConfig::default()
+    };
+    let mut g = c.benchmark_group("neural");
+    g.sample_size(10);
+    g.bench_function(
+        "Table 5: scheme 2, 46 poses, 20 hidden, 20000 epochs",
+        |b| {
+            b.iter(|| {
+                NkModel::train(&nominal, &lea, Scheme::Direct2, AngularSum::Trig, &cfg)
+                    .expect("train")
+            })
+        },
+    );
+    g.finish();
+}
+
+fn rv_m2_network(c: &mut Criterion) {
+    let sc =
+        rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).expect("scenario");
+    let rig = &sc.rig;
+    let world = sc.world();
+    let poses = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        2200,
+        &mut ChaCha8Rng::seed_from_u64(1),
+    );
+    let obs: Vec<Observation> = poses
+        .iter()
+        .enumerate()
+        .map(|(k, q)| Observation {
+            q: q.clone(),
+            p: world.measure(q, k as u64, 0),
+        })
+        .collect();
+    let cfg = TrainConfig {
+        hidden: 20,
+        epochs: 3000,
+        learning_rate: 0.46 / (0.8 * 2200.0),
+        validation_fraction: 0.2,
+        patience: 600,
+        ..TrainConfig::default()
+    };
+    let mut g = c.benchmark_group("neural");
+    g.sample_size(10);
+    g.bench_function(
+        "RV-M2: scheme 4, 2200 measurements, 20 hidden, 3000 epochs",
+        |b| b.iter(|| train_on_rig(rig, &obs, Scheme::Direct4, &cfg).expect("train")),
+    );
+    g.finish();
+}
+
+criterion_group!(benches, table5_network, rv_m2_network);
+criterion_main!(benches);

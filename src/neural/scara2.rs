@@ -1,0 +1,239 @@
+//! The 2-DOF SCARA of seed 001 section 2 (eqs. 1–3, Tables 3, 4 and 6): nominal kinematics in
+//! closed form and the simulated real robot with geometric errors, joint compliance and link
+//! forces, plus random errors.
+//!
+//! # Conventions and choices
+//! Millimetres and radians inside (Table 4's degrees converted). Joints Q = [α, β]; gripper
+//! S = [x, y] (mm). The working area is α ∈ [0°, 180°], β ∈ [50°, 155°] (`rigs/scara2.toml`).
+//! The paper does not place the force points P1 and P2 of Fig. 1: we put P1 at the middle of
+//! link 1 and P2 at the middle of link 2. The forces are constant in the base frame; the
+//! torsional springs k1, k2 deflect α by τ1/k1 and β by τ2/k2, where τ1 is the torque of both
+//! forces about joint 1 and τ2 that of F2 about joint 2, computed once on the geometry with the
+//! constant errors (no fixed-point iteration: the deflection changes the torques by < 1 %).
+//! Random errors (Table 6) are drawn uniformly in ±amplitude for every pose.
+
+use super::kinematics::{Kinematics, KinematicsError};
+use rand::Rng;
+
+/// Link lengths of Table 4 (mm).
+pub const LINK_MM: f64 = 330.0;
+
+/// The nominal 2-DOF SCARA (eqs. 1–2), elbow branch taken from the guess.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scara2 {
+    /// Link 1 (mm).
+    pub l1: f64,
+    /// Link 2 (mm).
+    pub l2: f64,
+}
+
+impl Default for Scara2 {
+    fn default() -> Self {
+        Self {
+            l1: LINK_MM,
+            l2: LINK_MM,
+        }
+    }
+}
+
+impl Kinematics for Scara2 {
+    fn joint_count(&self) -> usize {
+        2
+    }
+    fn pose_len(&self) -> usize {
+        2
+    }
+    fn joint_is_angle(&self, _i: usize) -> bool {
+        true
+    }
+    fn pose_is_angle(&self, _i: usize) -> bool {
+        false
+    }
+    fn forward(&self, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        let (a, b) = (q[0], q[1]);
+        Ok(vec![
+            self.l1 * a.cos() + self.l2 * (a + b).cos(),
+            self.l1 * a.sin() + self.l2 * (a + b).sin(),
+        ])
+    }
+    fn inverse(&self, s: &[f64], guess: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        let (x, y) = (s[0], s[1]);
+        let c = (x * x + y * y - self.l1 * self.l1 - self.l2 * self.l2) / (2.0 * self.l1 * self.l2);
+        if !(-1.0..=1.0).contains(&c) {
+            return Err(KinematicsError::Unreachable {
+                pose: s.to_vec(),
+                reason: format!("cos β = {c:.4} outside [−1, 1]"),
+            });
+        }
+        let sign = if guess.get(1).copied().unwrap_or(1.0) >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        let b = sign * c.acos();
+        let a = y.atan2(x) - (self.l2 * b.sin()).atan2(self.l1 + self.l2 * b.cos());
+        Ok(vec![super::kinematics::wrap(a), b])
+    }
+    fn jacobian(&self, q: &[f64]) -> Result<nalgebra::DMatrix<f64>, KinematicsError> {
+        let (a, b) = (q[0], q[1]);
+        let (s1, c1, s12, c12) = (a.sin(), a.cos(), (a + b).sin(), (a + b).cos());
+        Ok(nalgebra::DMatrix::from_row_slice(
+            2,
+            2,
+            &[
+                -self.l1 * s1 - self.l2 * s12,
+                -self.l2 * s12,
+                self.l1 * c1 + self.l2 * c12,
+                self.l2 * c12,
+            ],
+        ))
+    }
+}
+
+/// The error components of Table 3 (one column of Table 4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scara2Errors {
+    /// δl1 (mm).
+    pub dl1: f64,
+    /// δl2 (mm).
+    pub dl2: f64,
+    /// δα (rad).
+    pub dalpha: f64,
+    /// δβ (rad).
+    pub dbeta: f64,
+    /// k1 (N·m/rad); `None` = rigid.
+    pub k1: Option<f64>,
+    /// k2 (N·m/rad); `None` = rigid.
+    pub k2: Option<f64>,
+    /// Force on P1, [Fx, Fy] (N).
+    pub f1: [f64; 2],
+    /// Force on P2, [Fx, Fy] (N).
+    pub f2: [f64; 2],
+}
+
+impl Scara2Errors {
+    /// Case 1, 2 or 3 of Table 4.
+    pub fn case(n: u8) -> Self {
+        let d = f64::to_radians;
+        match n {
+            1 => Self {
+                dl1: 5.0,
+                dl2: -6.0,
+                dalpha: d(2.0),
+                dbeta: d(-1.3),
+                k1: None,
+                k2: None,
+                f1: [0.0; 2],
+                f2: [0.0; 2],
+            },
+            2 => Self {
+                k1: Some(1000.0),
+                k2: Some(1000.0),
+                f1: [100.0, 0.0],
+                f2: [100.0, 0.0],
+                ..Self::case(1)
+            },
+            _ => Self {
+                dl1: 0.5,
+                dl2: -1.0,
+                dalpha: d(0.15),
+                dbeta: d(0.05),
+                k1: Some(80000.0),
+                k2: Some(70000.0),
+                f1: [200.0, -100.0],
+                f2: [-300.0, 200.0],
+            },
+        }
+    }
+
+    /// Table 6: the constant errors of the random-error tests (δβ = −1.3°, not the −6° printed
+    /// there; conventions §10), rigid joints, no forces.
+    pub fn table6() -> Self {
+        Self::case(1)
+    }
+}
+
+/// Random error amplitudes (± uniform), Table 6.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scara2Random {
+    /// δl1 (mm).
+    pub dl1: f64,
+    /// δl2 (mm).
+    pub dl2: f64,
+    /// δα (rad).
+    pub dalpha: f64,
+    /// δβ (rad).
+    pub dbeta: f64,
+    /// δx (mm).
+    pub dx: f64,
+    /// δy (mm).
+    pub dy: f64,
+}
+
+impl Scara2Random {
+    /// Table 6's amplitudes.
+    pub fn table6() -> Self {
+        Self {
+            dl1: 0.1,
+            dl2: 0.12,
+            dalpha: 0.04f64.to_radians(),
+            dbeta: 0.026f64.to_radians(),
+            dx: 0.01,
+            dy: 0.01,
+        }
+    }
+}
+
+/// The simulated real 2-DOF SCARA (eq. 3 plus compliance and forces).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scara2Real {
+    /// The nominal robot.
+    pub nominal: Scara2,
+    /// The constant errors.
+    pub errors: Scara2Errors,
+}
+
+impl Scara2Real {
+    /// The pose at `q` with the constant errors and one draw of random errors
+    /// ([δl1, δl2, δα, δβ, δx, δy], zeros for none).
+    pub fn pose(&self, q: &[f64], r: &[f64; 6]) -> [f64; 2] {
+        let e = &self.errors;
+        let l1 = self.nominal.l1 + e.dl1 + r[0];
+        let l2 = self.nominal.l2 + e.dl2 + r[1];
+        let mut a = q[0] + e.dalpha + r[2];
+        let mut b = q[1] + e.dbeta + r[3];
+        // Torques (N·m) of the link forces about the joints, from positions in metres.
+        let j2 = [l1 * a.cos(), l1 * a.sin()];
+        let p1 = [0.5 * j2[0], 0.5 * j2[1]];
+        let p2 = [
+            j2[0] + 0.5 * l2 * (a + b).cos(),
+            j2[1] + 0.5 * l2 * (a + b).sin(),
+        ];
+        let cross = |r: [f64; 2], f: [f64; 2]| (r[0] * f[1] - r[1] * f[0]) * 1e-3;
+        let t1 = cross(p1, e.f1) + cross(p2, e.f2);
+        let t2 = cross([p2[0] - j2[0], p2[1] - j2[1]], e.f2);
+        if let Some(k) = e.k1 {
+            a += t1 / k;
+        }
+        if let Some(k) = e.k2 {
+            b += t2 / k;
+        }
+        [
+            l1 * a.cos() + l2 * (a + b).cos() + r[4],
+            l1 * a.sin() + l2 * (a + b).sin() + r[5],
+        ]
+    }
+
+    /// A draw of random errors with amplitudes `amp`.
+    pub fn draw<R: Rng + ?Sized>(amp: &Scara2Random, rng: &mut R) -> [f64; 6] {
+        let mut u = |a: f64| if a > 0.0 { rng.gen_range(-a..a) } else { 0.0 };
+        [
+            u(amp.dl1),
+            u(amp.dl2),
+            u(amp.dalpha),
+            u(amp.dbeta),
+            u(amp.dx),
+            u(amp.dy),
+        ]
+    }
+}

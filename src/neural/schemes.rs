@@ -1,0 +1,438 @@
+//! Neuro-kinematic (NK) calibration schemes of seed 001 (Figs. 3–6): a network in parallel with
+//! the nominal kinematics learns the difference between nominal and real robot.
+//!
+//! # The schemes implemented, and how we read the figures
+//! The figures of the schemes are not in the text we have; we read them from what the text says
+//! about them: schemes 1–5 feed the joint coordinates Q to the network, the parallel schemes learn
+//! only the difference between nominal and actual kinematics, schemes 2, 3, 4 and 6 add joint
+//! rotations or pose coordinates (Tables 1–2), and for the Stewart platform and the 3-DOF SCARA
+//! "schemes 4 and 6 involve an angular sum on gripper coordinates S". Hence, with K the nominal
+//! direct kinematics, K⁻¹ its inverse, N the network and T(·) the sine/cosine encoding:
+//!
+//! | scheme | direct (predict S from Q) | inverse (predict Q for a desired S) |
+//! |---|---|---|
+//! | 2 | S = K(Q ⊕ N(T(Q))): a joint correction | Q = K⁻¹(S) ⊕ N(T(K⁻¹(S))) |
+//! | 4 | S = K(Q) ⊕ N(T(Q)): a pose correction | Q = K⁻¹(S ⊕ N(T(K⁻¹(S)))) |
+//!
+//! ⊕ is the angular sum of Table 1: [`AngularSum::Plain`] (θ + dθ) or [`AngularSum::Trig`]
+//! (the network outputs sin dθ and cos dθ; θ + atan2(sin dθ, cos dθ), the type the paper found
+//! best). Coordinates that are not angles are summed plainly.
+//!
+//! Training targets come from the measured pairs (Q, S_re): the joint correction is
+//! K⁻¹(S_re) − Q (direct 2) or Q − K⁻¹(S_re) (inverse 2), the pose correction S_re − K(Q)
+//! (direct 4) or K(Q) − S_re (inverse 4); the network then fits them by least squares, which is
+//! the paper's E = ‖S_re − S_NK‖ to first order.
+//!
+//! # Errors reported (section 4.4)
+//! Direct: E = ‖S_NK(Q) − S‖. Inverse: the equivalent pose error ‖J·(Q_re − Q_NK)‖ with J the
+//! nominal Jacobian at Q_re. *Apparent* against the measured (noisy) pose, *actual* against the
+//! pose of the robot with its constant errors only; E_r = ‖S_noisy − S_constant‖ and the
+//! filtering index FI = mean E_ac / mean E_r (eq. 5).
+
+use super::kinematics::{difference, newton_inverse, wrap, Kinematics, KinematicsError};
+use super::network::{columns, Network, Scaler, TrainConfig, TrainOutcome};
+use super::NeuralError;
+use serde::{Deserialize, Serialize};
+
+/// A calibration scheme.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Scheme {
+    /// Direct scheme 2: joint correction before the nominal direct kinematics.
+    Direct2,
+    /// Direct scheme 4: pose correction after the nominal direct kinematics.
+    Direct4,
+    /// Inverse scheme 2: joint correction after the nominal inverse kinematics.
+    Inverse2,
+    /// Inverse scheme 4: pose correction before the nominal inverse kinematics.
+    Inverse4,
+}
+
+impl Scheme {
+    /// The paper's scheme number.
+    pub fn number(self) -> u8 {
+        match self {
+            Scheme::Direct2 | Scheme::Inverse2 => 2,
+            Scheme::Direct4 | Scheme::Inverse4 => 4,
+        }
+    }
+
+    /// Direct (predicts S) or inverse (predicts Q).
+    pub fn is_direct(self) -> bool {
+        matches!(self, Scheme::Direct2 | Scheme::Direct4)
+    }
+
+    /// Whether the network's correction is in joint space (scheme 2) or pose space (scheme 4).
+    pub fn corrects_joints(self) -> bool {
+        self.number() == 2
+    }
+
+    /// A short name (`direct-2`, `inverse-4`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Scheme::Direct2 => "direct-2",
+            Scheme::Direct4 => "direct-4",
+            Scheme::Inverse2 => "inverse-2",
+            Scheme::Inverse4 => "inverse-4",
+        }
+    }
+}
+
+/// How corrections of angles are added (seed 001 Table 1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AngularSum {
+    /// θ + dθ: the network outputs dθ.
+    Plain,
+    /// θ + atan2(sin dθ, cos dθ): the network outputs sin dθ and cos dθ.
+    Trig,
+}
+
+/// A measured pair: joint values and the pose reached (internal units).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Sample {
+    /// Joint values commanded (rad, mm).
+    pub q: Vec<f64>,
+    /// Pose measured (mm, rad), random errors included.
+    pub s: Vec<f64>,
+    /// The pose the robot reaches with its constant errors only, when the truth is known.
+    pub s_true: Option<Vec<f64>>,
+}
+
+/// Apparent error vectors, and actual ones where the truth is known, per sample.
+pub type ErrorVectors = (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>);
+
+/// A trained neuro-kinematic model: scheme, scalings and network.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NkModel {
+    /// The scheme.
+    pub scheme: Scheme,
+    /// How angle corrections are added.
+    pub angular_sum: AngularSum,
+    /// Which joint coordinates are angles (encoded as sin, cos at the input).
+    pub joint_angle: Vec<bool>,
+    /// Which pose coordinates are angles.
+    pub pose_angle: Vec<bool>,
+    /// Scaling of the encoded inputs.
+    pub input_scaler: Scaler,
+    /// Scaling of the encoded outputs (the network is trained on scaled targets).
+    pub output_scaler: Scaler,
+    /// The network.
+    pub network: Network,
+}
+
+fn sum_coords(x: &[f64], d: &[f64], is_angle: &[bool]) -> Vec<f64> {
+    x.iter()
+        .zip(d)
+        .zip(is_angle)
+        .map(|((a, b), &ang)| if ang { wrap(a + b) } else { a + b })
+        .collect()
+}
+
+impl NkModel {
+    /// T(Q): angles as (sin, cos), other coordinates as they are.
+    pub fn encode_joints(q: &[f64], is_angle: &[bool]) -> Vec<f64> {
+        let mut out = Vec::with_capacity(2 * q.len());
+        for (v, &a) in q.iter().zip(is_angle) {
+            if a {
+                out.push(v.sin());
+                out.push(v.cos());
+            } else {
+                out.push(*v);
+            }
+        }
+        out
+    }
+
+    fn correction_flags(&self) -> &[bool] {
+        if self.scheme.corrects_joints() {
+            &self.joint_angle
+        } else {
+            &self.pose_angle
+        }
+    }
+
+    fn encode_correction(d: &[f64], is_angle: &[bool], sum: AngularSum) -> Vec<f64> {
+        match sum {
+            AngularSum::Plain => d.to_vec(),
+            AngularSum::Trig => Self::encode_joints(d, is_angle),
+        }
+    }
+
+    fn decode_correction(y: &[f64], is_angle: &[bool], sum: AngularSum) -> Vec<f64> {
+        match sum {
+            AngularSum::Plain => y.to_vec(),
+            AngularSum::Trig => {
+                let mut out = Vec::with_capacity(is_angle.len());
+                let mut k = 0;
+                for &a in is_angle {
+                    if a {
+                        out.push(y[k].atan2(y[k + 1]));
+                        k += 2;
+                    } else {
+                        out.push(y[k]);
+                        k += 1;
+                    }
+                }
+                out
+            }
+        }
+    }
+
+    /// The correction the network gives for network-input joint values `q_in` (internal units).
+    pub fn correction(&self, q_in: &[f64]) -> Vec<f64> {
+        let x = self
+            .input_scaler
+            .apply(&Self::encode_joints(q_in, &self.joint_angle));
+        let y = self.output_scaler.invert(&self.network.predict(&x));
+        Self::decode_correction(&y, self.correction_flags(), self.angular_sum)
+    }
+
+    /// Trains a model of `scheme` on measured pairs with the nominal kinematics `nominal`.
+    pub fn train(
+        nominal: &dyn Kinematics,
+        data: &[Sample],
+        scheme: Scheme,
+        angular_sum: AngularSum,
+        cfg: &TrainConfig,
+    ) -> Result<(Self, TrainOutcome), NeuralError> {
+        if data.len() < 2 {
+            return Err(NeuralError::TooFewSamples { got: data.len() });
+        }
+        let joint_angle: Vec<bool> = (0..nominal.joint_count())
+            .map(|i| nominal.joint_is_angle(i))
+            .collect();
+        let pose_angle: Vec<bool> = (0..nominal.pose_len())
+            .map(|i| nominal.pose_is_angle(i))
+            .collect();
+        let mut inputs = Vec::with_capacity(data.len());
+        let mut targets = Vec::with_capacity(data.len());
+        let flags = if scheme.corrects_joints() {
+            &joint_angle
+        } else {
+            &pose_angle
+        };
+        for (index, smp) in data.iter().enumerate() {
+            let kin = |source: KinematicsError| NeuralError::Kinematics { index, source };
+            let (q_in, d) = match scheme {
+                Scheme::Direct2 => {
+                    let qs = nominal.inverse(&smp.s, &smp.q).map_err(kin)?;
+                    let d = difference(&qs, &smp.q, |i| joint_angle[i]);
+                    (smp.q.clone(), d)
+                }
+                Scheme::Direct4 => {
+                    let s0 = nominal.forward(&smp.q).map_err(kin)?;
+                    (smp.q.clone(), difference(&smp.s, &s0, |i| pose_angle[i]))
+                }
+                Scheme::Inverse2 => {
+                    let qth = nominal.inverse(&smp.s, &smp.q).map_err(kin)?;
+                    let d = difference(&smp.q, &qth, |i| joint_angle[i]);
+                    (qth, d)
+                }
+                Scheme::Inverse4 => {
+                    let qth = nominal.inverse(&smp.s, &smp.q).map_err(kin)?;
+                    let s0 = nominal.forward(&smp.q).map_err(kin)?;
+                    (qth, difference(&s0, &smp.s, |i| pose_angle[i]))
+                }
+            };
+            inputs.push(Self::encode_joints(&q_in, &joint_angle));
+            targets.push(Self::encode_correction(&d, flags, angular_sum));
+        }
+        let input_scaler = Scaler::fit(&inputs);
+        let mut output_scaler = Scaler::fit(&targets);
+        if angular_sum == AngularSum::Trig {
+            // cos dθ barely varies: scale it like sin dθ so neither the loss nor early stopping
+            // is dominated by magnified noise in it.
+            let mut k = 0;
+            for &a in flags.iter() {
+                if a {
+                    output_scaler.scale[k + 1] = output_scaler.scale[k];
+                    k += 2;
+                } else {
+                    k += 1;
+                }
+            }
+        }
+        let x = columns(
+            &inputs
+                .iter()
+                .map(|r| input_scaler.apply(r))
+                .collect::<Vec<_>>(),
+        );
+        let t = columns(
+            &targets
+                .iter()
+                .map(|r| output_scaler.apply(r))
+                .collect::<Vec<_>>(),
+        );
+        let mut network = Network::new(x.nrows(), cfg.hidden, t.nrows(), cfg.seed);
+        let outcome = network.train(&x, &t, cfg);
+        Ok((
+            Self {
+                scheme,
+                angular_sum,
+                joint_angle,
+                pose_angle,
+                input_scaler,
+                output_scaler,
+                network,
+            },
+            outcome,
+        ))
+    }
+
+    /// The pose predicted for joint values `q` (direct schemes; an inverse scheme is inverted
+    /// numerically around `q`).
+    pub fn pose(&self, nominal: &dyn Kinematics, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        match self.scheme {
+            Scheme::Direct2 => {
+                let d = self.correction(q);
+                nominal.forward(&sum_coords(q, &d, &self.joint_angle))
+            }
+            Scheme::Direct4 => {
+                let d = self.correction(q);
+                Ok(sum_coords(&nominal.forward(q)?, &d, &self.pose_angle))
+            }
+            Scheme::Inverse2 | Scheme::Inverse4 => {
+                // S such that joints(S) = q, by Newton on S starting at K(q).
+                let mut s = nominal.forward(q)?;
+                for _ in 0..20 {
+                    let qq = self.joints(nominal, &s, q)?;
+                    let dq = difference(q, &qq, |i| self.joint_angle[i]);
+                    let j = nominal.jacobian(&qq)?;
+                    let ds = j * nalgebra::DVector::from_vec(dq.clone());
+                    s = sum_coords(&s, ds.as_slice(), &self.pose_angle);
+                    if dq.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-12 {
+                        break;
+                    }
+                }
+                Ok(s)
+            }
+        }
+    }
+
+    /// The joint values predicted to reach pose `s` (inverse schemes; a direct scheme is inverted
+    /// by Newton–Raphson). `guess` picks the branch.
+    pub fn joints(
+        &self,
+        nominal: &dyn Kinematics,
+        s: &[f64],
+        guess: &[f64],
+    ) -> Result<Vec<f64>, KinematicsError> {
+        match self.scheme {
+            Scheme::Inverse2 => {
+                let qth = nominal.inverse(s, guess)?;
+                let d = self.correction(&qth);
+                Ok(sum_coords(&qth, &d, &self.joint_angle))
+            }
+            Scheme::Inverse4 => {
+                let qth = nominal.inverse(s, guess)?;
+                let d = self.correction(&qth);
+                nominal.inverse(&sum_coords(s, &d, &self.pose_angle), &qth)
+            }
+            Scheme::Direct2 | Scheme::Direct4 => {
+                let start = nominal.inverse(s, guess)?;
+                let k = NkForward {
+                    model: self,
+                    nominal,
+                };
+                newton_inverse(&k, s, &start, 1e-9, 30)
+            }
+        }
+    }
+
+    /// Apparent and actual pose-error vectors on `data` (see the module docs); the actual ones
+    /// only where the truth is known.
+    pub fn errors(
+        &self,
+        nominal: &dyn Kinematics,
+        data: &[Sample],
+    ) -> Result<ErrorVectors, NeuralError> {
+        let mut ap = Vec::with_capacity(data.len());
+        let mut ac = Vec::with_capacity(data.len());
+        let pa = |i: usize| self.pose_angle[i];
+        for (index, smp) in data.iter().enumerate() {
+            let kin = |source: KinematicsError| NeuralError::Kinematics { index, source };
+            if self.scheme.is_direct() {
+                let p = self.pose(nominal, &smp.q).map_err(kin)?;
+                ap.push(difference(&p, &smp.s, pa));
+                ac.push(smp.s_true.as_ref().map(|t| difference(&p, t, pa)));
+            } else {
+                let j = nominal.jacobian(&smp.q).map_err(kin)?;
+                let eq = |s: &[f64]| -> Result<Vec<f64>, NeuralError> {
+                    let qn = self.joints(nominal, s, &smp.q).map_err(kin)?;
+                    let dq = difference(&smp.q, &qn, |i| self.joint_angle[i]);
+                    Ok((&j * nalgebra::DVector::from_vec(dq)).as_slice().to_vec())
+                };
+                ap.push(eq(&smp.s)?);
+                ac.push(match &smp.s_true {
+                    Some(t) => Some(eq(t)?),
+                    None => None,
+                });
+            }
+        }
+        Ok((ap, ac))
+    }
+}
+
+/// An NK direct model as [`Kinematics`] (for Newton inversion).
+struct NkForward<'a> {
+    model: &'a NkModel,
+    nominal: &'a dyn Kinematics,
+}
+
+impl Kinematics for NkForward<'_> {
+    fn joint_count(&self) -> usize {
+        self.nominal.joint_count()
+    }
+    fn pose_len(&self) -> usize {
+        self.nominal.pose_len()
+    }
+    fn joint_is_angle(&self, i: usize) -> bool {
+        self.nominal.joint_is_angle(i)
+    }
+    fn pose_is_angle(&self, i: usize) -> bool {
+        self.nominal.pose_is_angle(i)
+    }
+    fn forward(&self, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        self.model.pose(self.nominal, q)
+    }
+    fn inverse(&self, s: &[f64], guess: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        self.model.joints(self.nominal, s, guess)
+    }
+}
+
+/// Mean and maximum of the norms of error vectors over a range of coordinates.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
+pub struct ErrorStats {
+    /// Mean norm.
+    pub mean: f64,
+    /// Largest norm.
+    pub max: f64,
+}
+
+impl ErrorStats {
+    /// Statistics of ‖v[range]‖ · `scale` over the vectors.
+    pub fn of<'a>(
+        v: impl IntoIterator<Item = &'a Vec<f64>>,
+        range: std::ops::Range<usize>,
+        scale: f64,
+    ) -> Self {
+        let norms: Vec<f64> = v
+            .into_iter()
+            .map(|x| x[range.clone()].iter().map(|a| a * a).sum::<f64>().sqrt() * scale)
+            .collect();
+        if norms.is_empty() {
+            return Self::default();
+        }
+        Self {
+            mean: norms.iter().sum::<f64>() / norms.len() as f64,
+            max: norms.iter().copied().fold(0.0, f64::max),
+        }
+    }
+}
+
+/// The filtering index FI = mean E_ac / mean E_r (eq. 5).
+pub fn filtering_index(actual_mean: f64, random_mean: f64) -> Option<f64> {
+    (random_mean > 0.0).then(|| actual_mean / random_mean)
+}

@@ -1,0 +1,334 @@
+//! Neuro-kinematic calibration (seed 001): the network, the schemes, the paper's robots and
+//! reduced reproductions. Sizes are reduced to keep the file to a few seconds in release.
+
+use nalgebra::DMatrix;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rigcal::kinematics::Robot;
+use rigcal::neural::network::{validation_split, Method};
+use rigcal::neural::reproduce::{table5, ReproOptions};
+use rigcal::neural::scara2::Scara2;
+use rigcal::neural::scara3::{self, Scara3Real};
+use rigcal::neural::schemes::{filtering_index, ErrorStats};
+use rigcal::neural::stewart::{home_pose, Stewart, StewartErrors};
+use rigcal::neural::{
+    AngularSum, Kinematics, Network, NkModel, Sample, Scaler, Scheme, TrainConfig,
+};
+
+fn data(n: usize, inputs: usize, outputs: usize, seed: u64) -> (DMatrix<f64>, DMatrix<f64>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let x: DMatrix<f64> = DMatrix::from_fn(inputs, n, |_, _| rng.gen_range(-1.0..1.0));
+    let t = DMatrix::from_fn(outputs, n, |r, c| {
+        (x[(0, c)] * 2.0).sin()
+            + 0.3 * r as f64 * x[(inputs - 1, c)]
+            + 0.05 * rng.gen_range(-1.0f64..1.0)
+    });
+    (x, t)
+}
+
+#[test]
+fn backprop_matches_finite_differences() {
+    let (x, t) = data(13, 4, 3, 1);
+    let net = Network::new(4, 6, 3, 7);
+    let (_, g) = net.loss_and_gradient(&x, &t);
+    let mut analytic: Vec<f64> = Vec::new();
+    analytic.extend(g.w1.iter());
+    analytic.extend(g.b1.iter());
+    analytic.extend(g.w2.iter());
+    analytic.extend(g.b2.iter());
+    let w = net.weights();
+    assert_eq!(w.len(), analytic.len());
+    let h = 1e-6;
+    for k in 0..w.len() {
+        let mut p = net.clone();
+        let mut wp = w.clone();
+        wp[k] += h;
+        p.set_weights(&wp);
+        let lp = p.loss(&x, &t);
+        wp[k] -= 2.0 * h;
+        p.set_weights(&wp);
+        let lm = p.loss(&x, &t);
+        let numeric: f64 = (lp - lm) / (2.0 * h);
+        assert!(
+            (numeric - analytic[k]).abs() <= 1e-6 * (1.0 + numeric.abs()),
+            "weight {k}: analytic {} numeric {numeric}",
+            analytic[k]
+        );
+    }
+    // The Levenberg–Marquardt Jacobian agrees with the gradient: Jᵀr = ∂E/∂w.
+    let (j, r) = net.output_jacobian(&x, &t);
+    let jtr = j.transpose() * r;
+    for k in 0..w.len() {
+        assert!((jtr[k] - analytic[k]).abs() <= 1e-9 * (1.0 + analytic[k].abs()));
+    }
+}
+
+#[test]
+fn training_is_deterministic_from_the_seed() {
+    let (x, t) = data(40, 4, 2, 2);
+    let cfg = TrainConfig {
+        hidden: 8,
+        epochs: 500,
+        validation_fraction: 0.25,
+        seed: 5,
+        ..TrainConfig::default()
+    };
+    let train = |cfg: &TrainConfig| {
+        let mut n = Network::new(4, cfg.hidden, 2, cfg.seed);
+        let o = n.train(&x, &t, cfg);
+        (n, o)
+    };
+    let (a, oa) = train(&cfg);
+    let (b, ob) = train(&cfg);
+    assert_eq!(a, b);
+    assert_eq!(oa, ob);
+    let (c, _) = train(&TrainConfig { seed: 6, ..cfg });
+    assert_ne!(a, c);
+    for method in [Method::Momentum, Method::LevenbergMarquardt] {
+        let cfg = TrainConfig {
+            method,
+            epochs: 50,
+            ..cfg
+        };
+        assert_eq!(train(&cfg).0, train(&cfg).0);
+    }
+}
+
+#[test]
+fn early_stopping_restores_the_best_validation_weights() {
+    // Few noisy patterns and many neurons: the validation error turns up, training stops.
+    let (x, t) = data(24, 2, 1, 3);
+    let cfg = TrainConfig {
+        method: Method::LevenbergMarquardt,
+        hidden: 20,
+        epochs: 400,
+        validation_fraction: 0.3,
+        patience: 30,
+        seed: 9,
+        ..TrainConfig::default()
+    };
+    let mut net = Network::new(2, 20, 1, cfg.seed);
+    let out = net.train(&x, &t, &cfg);
+    assert!(out.best_epoch < out.epochs, "{out:?}");
+    assert!(out.epochs < cfg.epochs, "stopped early: {out:?}");
+    let (val, _) = validation_split(24, &cfg);
+    let pick = |m: &DMatrix<f64>| DMatrix::from_fn(m.nrows(), val.len(), |r, c| m[(r, val[c])]);
+    let (xv, tv) = (pick(&x), pick(&t));
+    let rms = (2.0 * net.loss(&xv, &tv) / val.len() as f64).sqrt();
+    let reported = out.validation_rms.expect("validation error");
+    assert!((rms - reported).abs() < 1e-12, "{rms} vs {reported}");
+    // The same training without early stopping (on the same training patterns, from the same
+    // weights) ends worse on the held-out patterns than the weights kept.
+    let (_, train) = validation_split(24, &cfg);
+    let pick_t =
+        |m: &DMatrix<f64>| DMatrix::from_fn(m.nrows(), train.len(), |r, c| m[(r, train[c])]);
+    let mut last = Network::new(2, 20, 1, cfg.seed);
+    last.train(
+        &pick_t(&x),
+        &pick_t(&t),
+        &TrainConfig {
+            validation_fraction: 0.0,
+            epochs: out.epochs,
+            ..cfg
+        },
+    );
+    let last_rms = (2.0 * last.loss(&xv, &tv) / val.len() as f64).sqrt();
+    assert!(last_rms > reported, "{last_rms} vs {reported}");
+}
+
+#[test]
+fn reduced_table5_ranks_scheme_2_first_and_calibrates_by_orders_of_magnitude() {
+    let o = ReproOptions {
+        epochs: 5000,
+        reduce: 8,
+        ..ReproOptions::default()
+    };
+    let t = table5(&o).expect("table 5");
+    for case in 1..=3 {
+        let s2 = t.ours(&format!("case {case} scheme 2")).expect("s2");
+        let s4 = t.ours(&format!("case {case} scheme 4")).expect("s4");
+        let before = t
+            .ours(&format!("case {case} E_ave before"))
+            .expect("before");
+        assert!(s2 < s4, "case {case}: scheme 2 {s2} vs scheme 4 {s4}");
+        assert!(s2 < before / 20.0, "case {case}: {s2} vs {before} before");
+        assert!(s4 < before / 5.0, "case {case}: {s4} vs {before} before");
+    }
+}
+
+#[test]
+fn stewart_inverse_and_newton_raphson_direct_kinematics_round_trip() {
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let nominal = Stewart::nominal();
+    let real = nominal.perturbed(&StewartErrors::table9_constant().draw(&mut rng));
+    for k in &[&nominal, &real] {
+        for _ in 0..20 {
+            let s = Stewart::random_pose(&mut rng);
+            let q = k.inverse(&s, &[]).expect("ik");
+            let back = k.direct(&q, &home_pose(), 1e-12).expect("fk");
+            for i in 0..6 {
+                assert!(
+                    (back[i] - s[i]).abs() < 1e-9,
+                    "{i}: {} vs {}",
+                    back[i],
+                    s[i]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn filtering_index_of_a_constant_correction_in_closed_form() {
+    // A direct scheme-4 network that outputs the constant c: S_NK = K(Q) + c. On samples with
+    // S_true = K(Q) and S = K(Q) + r_i: E_ac = |c|, E_ap = |c − r_i|, E_r = |r_i|, so
+    // FI = |c| / mean |r_i|.
+    let k = Scara2::default();
+    let mut net = Network::new(4, 3, 2, 1);
+    net.w2.fill(0.0);
+    net.b2[0] = 0.3;
+    net.b2[1] = -0.4;
+    let model = NkModel {
+        scheme: Scheme::Direct4,
+        angular_sum: AngularSum::Plain,
+        joint_angle: vec![true, true],
+        pose_angle: vec![false, false],
+        input_scaler: Scaler::identity(4),
+        output_scaler: Scaler::identity(2),
+        network: net,
+    };
+    let rs = [[1.0, 0.0], [0.0, 2.0], [-3.0, 4.0]];
+    let data: Vec<Sample> = rs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let q = vec![0.3 * i as f64, 1.0 + 0.2 * i as f64];
+            let p = k.forward(&q).expect("fk");
+            Sample {
+                q,
+                s: vec![p[0] + r[0], p[1] + r[1]],
+                s_true: Some(p),
+            }
+        })
+        .collect();
+    let (ap, ac) = model.errors(&k, &data).expect("errors");
+    let ac: Vec<Vec<f64>> = ac.into_iter().flatten().collect();
+    let eac = ErrorStats::of(&ac, 0..2, 1.0);
+    assert!((eac.mean - 0.5).abs() < 1e-12 && (eac.max - 0.5).abs() < 1e-12);
+    let eap = ErrorStats::of(&ap, 0..2, 1.0);
+    let want = ((0.3f64 - 1.0).hypot(-0.4) + 0.3f64.hypot(-2.4) + 3.3f64.hypot(-4.4)) / 3.0;
+    assert!((eap.mean - want).abs() < 1e-12);
+    let er = (1.0 + 2.0 + 5.0) / 3.0;
+    let fi = filtering_index(eac.mean, er).expect("fi");
+    assert!((fi - 0.5 / er).abs() < 1e-12);
+    assert_eq!(filtering_index(0.1, 0.0), None);
+}
+
+#[test]
+fn scara3_rig_file_is_the_nominal_of_the_simulated_robot() {
+    let (rig, kin) = scara3::nominal().expect("rig");
+    assert_eq!(rig.chain.joints().len(), 3);
+    let ideal = Scara3Real {
+        constant: [0.0; scara3::N_ERRORS],
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    for _ in 0..20 {
+        let q = scara3::random_joints(&mut rng);
+        let a = kin.forward(&q).expect("fk");
+        let b = ideal.position(&q, &[0.0; scara3::N_ERRORS]);
+        for i in 0..3 {
+            assert!((a[i] - b[i]).abs() < 1e-9);
+        }
+        let r = (a[0] * a[0] + a[1] * a[1]).sqrt();
+        assert!((129.9..530.1).contains(&r) && (0.0..300.0).contains(&a[2]));
+    }
+}
+
+#[test]
+fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
+    use rigcal::identification::{random_poses, Observation};
+    use rigcal::model::{ModelBody, ModelFile, Provenance};
+    let sc = rigcal::world::Scenario::load(std::path::Path::new("sim/paper-sim.toml"), None)
+        .expect("scenario");
+    let rig = &sc.rig;
+    let world = sc.world();
+    let poses = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        300,
+        &mut ChaCha8Rng::seed_from_u64(1),
+    );
+    let obs: Vec<Observation> = poses
+        .iter()
+        .map(|q| Observation {
+            q: q.clone(),
+            p: world.true_position(q),
+        })
+        .collect();
+    let cfg = TrainConfig {
+        hidden: 10,
+        epochs: 300,
+        learning_rate: 0.46 / 240.0,
+        validation_fraction: 0.2,
+        ..TrainConfig::default()
+    };
+    for scheme in [Scheme::Direct4, Scheme::Inverse4] {
+        let (network, _) =
+            rigcal::neural::rig_model::train_on_rig(rig, &obs, scheme, &cfg).expect("train");
+        let file = ModelFile::new(
+            rig,
+            Provenance::default(),
+            ModelBody::Neural {
+                network: network.clone(),
+            },
+        );
+        let dir = tempfile::tempdir().expect("tmp");
+        let path = dir.path().join("m.json");
+        file.save(&path).expect("save");
+        let loaded = ModelFile::load(&path).expect("load");
+        let ModelBody::Neural { network: back } = &loaded.file.model else {
+            panic!("not a neural model");
+        };
+        assert_eq!(back.nk.scheme, scheme);
+        let (w0, w1) = (network.nk.network.weights(), back.nk.network.weights());
+        assert!(w0
+            .iter()
+            .zip(&w1)
+            .all(|(a, b)| (a - b).abs() <= 1e-12 * (1.0 + a.abs())));
+        let models = loaded
+            .file
+            .error_models(&loaded.rig, &path)
+            .expect("models");
+        assert_eq!(models[0].0, format!("nn-{}", scheme.name()));
+        // Calibrated better than nominal on the training poses.
+        let (mut before, mut after) = (0.0, 0.0);
+        for o in &obs {
+            let e0 = rigcal::kinematics::ErrorParams::zeros(rig.chain.layout());
+            before += (rig.chain.position(&o.q, &e0) - o.p).norm();
+            // Both directions act as the real arm's forward model (inverse ones to first order).
+            let e = rigcal::kinematics::ErrorModel::params_at(models[0].1.as_ref(), &o.q);
+            after += (rig.chain.position(&o.q, &e) - o.p).norm();
+        }
+        assert!(after < 0.5 * before, "{scheme:?}: {after} vs {before}");
+    }
+}
+
+#[test]
+fn scara2_rig_file_is_the_closed_form_nominal() {
+    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/scara2.toml")).expect("rig");
+    let kin = rigcal::neural::SerialKinematics::new(rig.chain.clone(), rig.held());
+    let closed = Scara2::default();
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    for _ in 0..20 {
+        let q = vec![
+            rng.gen_range(0.0f64..180.0).to_radians(),
+            rng.gen_range(50.0f64..155.0).to_radians(),
+        ];
+        let a = kin.forward(&q).expect("fk");
+        let b = closed.forward(&q).expect("fk");
+        assert!((a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9 && a[2].abs() < 1e-9);
+        // Closed-form inverse on the same elbow branch.
+        let back = closed.inverse(&b, &q).expect("ik");
+        assert!((back[0] - q[0]).abs() < 1e-9 && (back[1] - q[1]).abs() < 1e-9);
+    }
+}
