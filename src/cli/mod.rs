@@ -53,7 +53,8 @@ enum Command {
     /// Joint commands that bring the calibrated arm to target positions.
     Compensate(compensate::Args),
     /// The variable D-H parameter model: recursive workspace division, CEPs per region and an
-    /// FCMAC (or CMAC) that generalises them.
+    /// FCMAC (or CMAC) that generalises them — offline, planning on a simulated world, or planning
+    /// through a measurement session; with --learner nn-*, seed 001's neural network.
     Calibrate(calibrate::Args),
     /// Position error along paths of a simulated arm with each model, CEP traces and plots.
     Evaluate(evaluate::Args),
