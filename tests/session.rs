@@ -202,13 +202,17 @@ fn a_dry_run_session_end_to_end_is_accepted_by_identify() {
 }
 
 fn session_cmd(dir: &Path, resume: bool) -> Command {
+    session_cmd_on("rigs/rv-m2.toml", SCENARIO, dir, resume)
+}
+
+fn session_cmd_on(rig: &str, sim: &str, dir: &Path, resume: bool) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_rigcal"));
     c.args([
         "session",
         "--rig",
-        "rigs/rv-m2.toml",
+        rig,
         "--sim",
-        SCENARIO,
+        sim,
         "--points",
         "60",
         "--regions",
@@ -238,12 +242,37 @@ fn fields(dir: &Path) -> Vec<Vec<String>> {
 
 #[test]
 fn a_session_killed_at_random_moments_resumes_to_the_uninterrupted_recording() {
+    kill_and_resume(&|dir, resume| session_cmd(dir, resume), 20, 7);
+}
+
+/// The same on the ideal-instrument rig (arm and simulated point sensor), with noise, so the
+/// resumed draws must be the uninterrupted ones.
+#[test]
+fn a_point_sensor_session_killed_and_resumed_matches_the_uninterrupted_one() {
+    let cmd = |dir: &Path, resume: bool| {
+        session_cmd_on(
+            "rigs/rv-m2-ideal.toml",
+            "sim/paper-sim-noise.toml",
+            dir,
+            resume,
+        )
+    };
+    kill_and_resume(&cmd, 5, 11);
+}
+
+/// Runs a session to the end, then again killed (SIGKILL) at random moments and resumed until
+/// `want_kills` kills have happened, and compares the two recordings.
+fn kill_and_resume(cmd: &dyn Fn(&Path, bool) -> Command, want_kills: usize, seed: u64) {
     let base = tempfile::tempdir().unwrap();
     let a = base.path().join("a");
-    let st = session_cmd(&a, false).status().unwrap();
+    let t0 = std::time::Instant::now();
+    let st = cmd(&a, false).status().unwrap();
     assert!(st.success());
+    // Kill moments spread over a whole run, so they land in every phase (plan, homing,
+    // registration, points), whatever the machine's speed.
+    let whole_us = (t0.elapsed().as_micros() as u64).clamp(2_000, 50_000);
     let b = base.path().join("b");
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut kills = 0;
     let mut runs = 0;
     let started = std::time::Instant::now();
@@ -254,13 +283,13 @@ fn a_session_killed_at_random_moments_resumes_to_the_uninterrupted_recording() {
         if fresh {
             let _ = std::fs::remove_dir_all(&b);
         }
-        let mut child = session_cmd(&b, !fresh).spawn().unwrap();
-        let delay = Duration::from_micros(rng.gen_range(500..25_000));
+        let mut child = cmd(&b, !fresh).spawn().unwrap();
+        let delay = Duration::from_micros(rng.gen_range(whole_us / 10..whole_us));
         std::thread::sleep(delay);
         match child.try_wait().unwrap() {
             Some(st) => {
                 assert!(st.success(), "run {runs} failed: {st}");
-                if kills >= 20 {
+                if kills >= want_kills {
                     break;
                 }
                 // Finished before the kill: start over to collect more kills.
@@ -278,7 +307,7 @@ fn a_session_killed_at_random_moments_resumes_to_the_uninterrupted_recording() {
             }
         }
     }
-    assert!(kills >= 20);
+    assert!(kills >= want_kills);
     compare(&a, &b);
     assert!(started.elapsed() < Duration::from_secs(60));
 }

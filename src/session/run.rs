@@ -494,8 +494,10 @@ impl Runner<'_> {
                 self.registration_info = Some(*info);
             }
             None => {
+                // Killed during the registration step, or a point-sensor rig (none to do): the
+                // journal keeps the point reached, never rewinds it.
                 self.registration_step()?;
-                self.commit(0, false)?;
+                self.commit(j.next_point, false)?;
             }
         }
         Ok(j.next_point)
