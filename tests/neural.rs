@@ -157,6 +157,39 @@ fn reduced_table5_ranks_scheme_2_first_and_calibrates_by_orders_of_magnitude() {
 }
 
 #[test]
+fn table5_reaches_the_papers_order_of_magnitude_when_data_do_not_limit_it() {
+    // At the paper's 46 poses the validation error is limited by generalisation (see the notes
+    // of Table 5); with 200 poses and a converged fit (Levenberg–Marquardt) both schemes reach
+    // the paper's order of magnitude in every case, scheme 2 first, and the training error lies
+    // in the paper's training range (1e-7…1e-5 m).
+    let o = ReproOptions {
+        method: Method::LevenbergMarquardt,
+        epochs: 300,
+        table5_poses: 200,
+        reduce: 8,
+        ..ReproOptions::default()
+    };
+    let t = table5(&o).expect("table 5");
+    for case in 1..=3 {
+        for scheme in [2, 4] {
+            let label = format!("case {case} scheme {scheme}");
+            let (_, ours, paper) = t
+                .values
+                .iter()
+                .find(|(l, _, _)| *l == label)
+                .cloned()
+                .expect("value");
+            assert!(ours < 10.0 * paper, "{label}: {ours} vs paper {paper}");
+            let train = t.ours(&format!("{label} training")).expect("training");
+            assert!(train < 0.01, "{label}: training error {train} mm");
+        }
+        let s2 = t.ours(&format!("case {case} scheme 2")).expect("s2");
+        let s4 = t.ours(&format!("case {case} scheme 4")).expect("s4");
+        assert!(s2 < s4, "case {case}: scheme 2 {s2} vs scheme 4 {s4}");
+    }
+}
+
+#[test]
 fn stewart_inverse_and_newton_raphson_direct_kinematics_round_trip() {
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let nominal = Stewart::nominal();

@@ -20,6 +20,9 @@ pub struct Args {
     /// Levenberg–Marquardt instead of the paper's gradient descent with momentum.
     #[arg(long)]
     pub lm: bool,
+    /// Training poses of Table 5 (the paper: 46); η is rescaled to keep its mean-gradient step.
+    #[arg(long, default_value_t = crate::neural::reproduce::TABLE5_POSES)]
+    pub poses: usize,
     /// Hidden neurons for the Stewart platform and the 3-DOF SCARA (the paper does not say).
     #[arg(long, default_value_t = 10)]
     pub hidden: usize,
@@ -38,6 +41,7 @@ pub fn run(a: Args) -> Result<()> {
     let o = ReproOptions {
         seed: a.seed,
         epochs: a.epochs,
+        table5_poses: a.poses,
         method: if a.lm {
             Method::LevenbergMarquardt
         } else {
