@@ -70,8 +70,22 @@ pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
     let scenario = load_scenario(&rig, &a.rig, a.sim.as_deref(), a.sim_seed)?;
     let seed = a.seed.or(scenario.as_ref().map(|s| s.seed)).unwrap_or(1);
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     let plan_path = a.out.join("plan.csv");
+    if !a.resume && a.out.join(crate::session::run::CSV_FILE).exists() {
+        // Before planning: a refused run must not touch the session's files.
+        bail!(
+            "{} already holds a recording; resume it with --resume or choose another --out",
+            a.out.display()
+        );
+    }
+    if a.resume && !a.out.join(crate::session::journal::JOURNAL_FILE).exists() {
+        bail!(
+            "{}: no session to resume here (no {}); start one without --resume",
+            a.out.display(),
+            crate::session::journal::JOURNAL_FILE
+        );
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     if !a.resume {
         let points = match (&a.plan, a.points) {
             (Some(p), None) => read_plan(p, &rig)?,
@@ -85,12 +99,6 @@ pub fn run(a: Args) -> Result<()> {
             }
             _ => bail!("give --plan FILE or --points N (or --resume to continue a session)"),
         };
-        if a.out.join(crate::session::run::CSV_FILE).exists() {
-            bail!(
-                "{} already holds a recording; resume it with --resume or choose another --out",
-                a.out.display()
-            );
-        }
         write_plan(&plan_path, &rig, &points)?;
     } else if a.plan.is_some() || a.points.is_some() {
         eprintln!(
@@ -150,6 +158,7 @@ pub fn run(a: Args) -> Result<()> {
         report.points,
         report.ok,
         match report.resumed_at {
+            Some(k) if k >= report.points => " (already finished: nothing left to measure)".to_string(),
             Some(k) => format!(" (this run, resumed at point {})", k + 1),
             None => String::new(),
         },

@@ -135,7 +135,7 @@ pub enum LearnerKind {
     /// The fuzzy CMAC of seed 000 (default).
     Fcmac,
     /// Not a CEP learner: a neural network learns the direct kinematics' correction
-    /// (seed 001, [`crate::neural`]); `rigcal calibrate` writes a neural model instead.
+    /// (seed 001); `rigcal calibrate` writes a neural model instead.
     #[serde(rename = "nn-direct")]
     NnDirect,
     /// Not a CEP learner: a neural network learns the inverse kinematics' correction.
