@@ -8,7 +8,6 @@ use crate::learners::{self, LearnerKind};
 use crate::model::{
     cep_scale, entries, summary, DivisionSummary, ModelBody, ModelFile, Provenance,
 };
-use crate::recording::Recording;
 use crate::rig::Rig;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -91,7 +90,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     match (&a.recording, &a.scenario) {
         (Some(dir), None) => {
-            let rec = Recording::read(dir, crate::kinematics::Robot::joints(&rig.chain))?;
+            let rec = super::identify::read_recording(&rig, dir)?;
             let obs = super::observations(&rec);
             if obs.is_empty() {
                 bail!("{}: no measured rows", dir.display());
@@ -472,7 +471,7 @@ pub(crate) fn neural_model(
 fn run_neural(rig: &Rig, a: &Args) -> Result<()> {
     let (obs, source) = match (&a.recording, &a.scenario) {
         (Some(dir), None) => {
-            let rec = Recording::read(dir, crate::kinematics::Robot::joints(&rig.chain))?;
+            let rec = super::identify::read_recording(rig, dir)?;
             (super::observations(&rec), Some(dir.display().to_string()))
         }
         (None, Some(scenario)) => {

@@ -45,7 +45,7 @@ pub enum Level {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
-    let rec = Recording::read(&a.recording, rig.chain.joints())?;
+    let rec = read_recording(&rig, &a.recording)?;
     let (chain, result, outliers, warning) = identify_robust(&rig, &rec, a.level)?;
     println!(
         "recording {}: {} rows, {} measurements used",
@@ -57,7 +57,7 @@ pub fn run(a: Args) -> Result<()> {
     print!("{}", super::parameter_table(chain.layout(), &result, None));
     print_fit_summary(&result);
     for dir in &a.heldout {
-        let held = Recording::read(dir, rig.chain.joints())?;
+        let held = read_recording(&rig, dir)?;
         let obs = super::observations(&held);
         if obs.is_empty() {
             bail!("held-out recording {}: no measured rows", dir.display());
@@ -246,7 +246,14 @@ pub(crate) fn identify_at(
 
 /// Reads a recording for a rig, with the path in the error.
 pub(crate) fn read_recording(rig: &Rig, path: &Path) -> Result<Recording> {
-    Ok(Recording::read(path, rig.chain.joints())?)
+    Recording::read(path, rig.chain.joints()).with_context(|| {
+        format!(
+            "reading the recording {} for rig `{}` ({} joints)",
+            path.display(),
+            rig.name,
+            rig.chain.joints().len()
+        )
+    })
 }
 
 /// Rewrites the fitted frame parameters of a chain whose nominal frame was a start value as
