@@ -7,7 +7,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rigcal::identification::{random_poses, Observation};
 use rigcal::kinematics::Robot;
-use rigcal::neural::reproduce::scara2_samples;
+use rigcal::neural::network::Method;
+use rigcal::neural::reproduce::{scara2_spread, TABLE5_LM_ITERATIONS};
 use rigcal::neural::rig_model::train_on_rig;
 use rigcal::neural::scara2::{Scara2, Scara2Errors, Scara2Real};
 use rigcal::neural::{AngularSum, NkModel, Scheme, TrainConfig};
@@ -19,10 +20,16 @@ fn table5_network(c: &mut Criterion) {
         nominal,
         errors: Scara2Errors::case(2),
     };
-    let lea = scara2_samples(&real, None, 46, &mut ChaCha8Rng::seed_from_u64(1));
+    let lea = scara2_spread(&real, 46);
     let cfg = TrainConfig {
         hidden: 20,
         epochs: 20_000,
+        ..TrainConfig::default()
+    };
+    let lm = TrainConfig {
+        method: Method::LevenbergMarquardt,
+        hidden: 20,
+        epochs: TABLE5_LM_ITERATIONS,
         ..TrainConfig::default()
     };
     let mut g = c.benchmark_group("neural");
@@ -32,6 +39,15 @@ fn table5_network(c: &mut Criterion) {
         |b| {
             b.iter(|| {
                 NkModel::train(&nominal, &lea, Scheme::Direct2, AngularSum::Trig, &cfg)
+                    .expect("train")
+            })
+        },
+    );
+    g.bench_function(
+        "Table 5: scheme 2, 46 poses, 20 hidden, Levenberg-Marquardt",
+        |b| {
+            b.iter(|| {
+                NkModel::train(&nominal, &lea, Scheme::Direct2, AngularSum::Trig, &lm)
                     .expect("train")
             })
         },

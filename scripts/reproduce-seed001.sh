@@ -12,7 +12,7 @@ mkdir -p "$out"
 cargo build --release --quiet
 rigcal=target/release/rigcal
 
-echo "== seed 001 tables (gradient descent with momentum, η = 0.01, momentum 0.9)"
+echo "== seed 001 tables (Table 5: Levenberg–Marquardt fits beside the paper's gradient descent; the others: gradient descent with momentum, η = 0.01, momentum 0.9, early stopping)"
 $rigcal reproduce seed001 --table 5 --table 7 --table 11 --table 18 --out "$out"
 
 echo "== RV-M2 paper scenario: three calibrations on the same 2200 measurements"

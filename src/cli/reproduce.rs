@@ -14,13 +14,16 @@ pub struct Args {
     /// all when omitted.
     #[arg(long = "table")]
     pub tables: Vec<u32>,
-    /// Epochs of batch back-propagation.
+    /// Epochs of batch back-propagation (Table 5: of its "paper's rule" rows; its main rows are
+    /// Levenberg–Marquardt fits).
     #[arg(long, default_value_t = 20_000)]
     pub epochs: usize,
-    /// Levenberg–Marquardt instead of the paper's gradient descent with momentum.
+    /// Levenberg–Marquardt instead of the paper's gradient descent with momentum, for Tables 7,
+    /// 11/12 and 17/18 (Table 5 prints both).
     #[arg(long)]
     pub lm: bool,
-    /// Training poses of Table 5 (the paper: 46); η is rescaled to keep its mean-gradient step.
+    /// Training poses of Table 5 (the paper: 46, evenly spread); η of its gradient-descent rows
+    /// is rescaled to keep the mean-gradient step.
     #[arg(long, default_value_t = crate::neural::reproduce::TABLE5_POSES)]
     pub poses: usize,
     /// Hidden neurons for the Stewart platform and the 3-DOF SCARA (the paper does not say).
