@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Reproduces seed 001 (neural-network calibration, Legnani & Tiboni): Tables 4–5 (2-DOF SCARA,
-# direct schemes 2 and 4, three cases), 6–8 (random errors, apparent/actual error, FI), 10–12
-# (Stewart platform, inverse schemes 2 and 4) and 16–18 (3-DOF SCARA, direct scheme 4), each
+# all seven direct schemes, three cases), 6–8 (random errors, apparent/actual error, FI), 10–12
+# (Stewart platform, inverse schemes 2 and 4) and 16–18 (3-DOF SCARA, direct schemes 3 and 4), each
 # beside the paper's numbers; then the three-way comparison on the RV-M2 paper scenario
 # (conventional, variable D-H + FCMAC, neural network; 2200 measurements, Fig. 6 and 7 paths).
 # Usage: scripts/reproduce-seed001.sh [OUT_DIR]   (default out/seed001; about half a minute)

@@ -7,14 +7,16 @@
 //! | [`network`] | the network, batch back-propagation with momentum, early stopping |
 //! | [`kinematics`] | the [`Kinematics`] trait (forward, inverse) for serial chains and the Stewart platform |
 //! | [`schemes`] | direct and inverse schemes 2 and 4, apparent/actual error, FI (eq. 5) |
+//! | [`direct_schemes`] | the other direct schemes (1, 3, 5, 6, 7) for Table 5's comparison and Table 17 |
 //! | [`scara2`], [`stewart`], [`scara3`] | the paper's simulated robots |
-//! | [`reproduce`] | Tables 4–5, 7, 11–12, 16–18 beside the paper's numbers |
+//! | [`reproduce`] | Tables 4–8, 10–12, 16–18 beside the paper's numbers |
 //! | [`rig_model`] | a network as an error model of a rig's chain (model files, compensation, `compare`) |
 //!
 //! # Units
 //! Millimetres and radians inside; millimetres and degrees in files and reports (the Stewart
 //! platform's orientation errors in mrad, as in the paper).
 
+pub mod direct_schemes;
 pub mod kinematics;
 pub mod network;
 pub mod reproduce;

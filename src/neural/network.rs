@@ -260,6 +260,45 @@ impl Network {
         }
     }
 
+    /// One Levenberg–Marquardt step on residuals `r` with Jacobian `j` (rows: residuals,
+    /// columns: weights) at loss ½‖r‖² = `loss`: raises the damping `lambda` until a step lowers
+    /// `loss_of`, keeps that step and lowers the damping. Returns `false` when training is over
+    /// (gradient vanished, or no damping finds a better point; the weights are then unchanged).
+    fn levenberg_marquardt_step(
+        &mut self,
+        j: &DMatrix<f64>,
+        r: &DVector<f64>,
+        loss: f64,
+        lambda: &mut f64,
+        loss_of: &dyn Fn(&Network) -> Option<f64>,
+    ) -> bool {
+        let jtj = j.transpose() * j;
+        let g = j.transpose() * r;
+        if g.amax() < 1e-14 || *lambda > 1e12 {
+            return false;
+        }
+        let w0 = self.weights();
+        while *lambda <= 1e12 {
+            let mut a = jtj.clone();
+            for k in 0..a.nrows() {
+                a[(k, k)] += *lambda;
+            }
+            let Some(step) = a.cholesky().map(|c| c.solve(&g)) else {
+                *lambda *= 10.0;
+                continue;
+            };
+            let w: Vec<f64> = w0.iter().zip(step.iter()).map(|(w, d)| w - d).collect();
+            self.set_weights(&w);
+            if loss_of(self).is_some_and(|l| l < loss) {
+                *lambda = (*lambda * 0.1).max(1e-12);
+                return true;
+            }
+            self.set_weights(&w0);
+            *lambda *= 10.0;
+        }
+        true
+    }
+
     /// Trains on patterns `x` (inputs × n) with targets `t` (outputs × n). With a validation
     /// fraction, that share of the patterns (chosen from the seed) is held out, training stops
     /// after `patience` epochs without improvement, and the best-validation weights are restored.
@@ -313,36 +352,11 @@ impl Network {
                     if (epoch - 1) % HISTORY_EVERY == 0 {
                         history.push(rms(loss, xt.ncols()));
                     }
-                    let jtj = j.transpose() * &j;
-                    let g = j.transpose() * &r;
-                    if g.amax() < 1e-14 || lambda > 1e12 {
+                    if !self.levenberg_marquardt_step(&j, &r, loss, &mut lambda, &|net| {
+                        Some(net.loss(&xt, &tt))
+                    }) {
                         epochs = epoch;
                         break;
-                    }
-                    let w0 = self.weights();
-                    loop {
-                        let mut a = jtj.clone();
-                        for k in 0..a.nrows() {
-                            a[(k, k)] += lambda;
-                        }
-                        let Some(step) = a.cholesky().map(|c| c.solve(&g)) else {
-                            lambda *= 10.0;
-                            if lambda > 1e12 {
-                                break;
-                            }
-                            continue;
-                        };
-                        let w: Vec<f64> = w0.iter().zip(step.iter()).map(|(w, d)| w - d).collect();
-                        self.set_weights(&w);
-                        if self.loss(&xt, &tt) < loss {
-                            lambda = (lambda * 0.1).max(1e-12);
-                            break;
-                        }
-                        self.set_weights(&w0);
-                        lambda *= 10.0;
-                        if lambda > 1e12 {
-                            break;
-                        }
                     }
                 }
             }
@@ -369,6 +383,120 @@ impl Network {
             best_epoch,
             train_rms,
             validation_rms: (n_val > 0).then(|| rms(best_val, n_val)),
+            history,
+        }
+    }
+}
+
+/// Residuals of one pattern through a map of the network's outputs, and their derivatives
+/// with respect to those outputs (rows: residuals, columns: outputs).
+pub type MappedResidual = (Vec<f64>, DMatrix<f64>);
+
+impl Network {
+    /// Levenberg–Marquardt on E = ½ Σ_n ‖r_n(y_n)‖², where y_n are the outputs for pattern n
+    /// (column n of `x`) and `residual(n, y_n)` maps them to residuals and their derivatives:
+    /// trains a network whose outputs are not compared with targets directly but pass through a
+    /// model first (a neuro-kinematic scheme trained end to end, E = ‖S_re − S_NK‖ of seed 001
+    /// section 3.2). `None` from `residual` (the model failed on that pattern) rejects the step,
+    /// or ends training if it happens at the current weights.
+    ///
+    /// Runs at most `cfg.epochs` steps; with `cfg.validation_fraction` > 0 that share of the
+    /// patterns is held out, training stops after `cfg.patience` steps without a better
+    /// held-out loss and the best weights are restored (as [`Network::train`]).
+    pub fn train_through(
+        &mut self,
+        x: &DMatrix<f64>,
+        residual: &dyn Fn(usize, &[f64]) -> Option<MappedResidual>,
+        cfg: &TrainConfig,
+    ) -> TrainOutcome {
+        let no = self.outputs();
+        let (val_idx, train_idx) = validation_split(x.ncols(), cfg);
+        let loss_over = |net: &Network, idx: &[usize]| -> Option<f64> {
+            let y = net.forward(x);
+            let mut l = 0.0;
+            for &p in idx {
+                let yp: Vec<f64> = y.column(p).iter().copied().collect();
+                let (r, _) = residual(p, &yp)?;
+                l += 0.5 * r.iter().map(|v| v * v).sum::<f64>();
+            }
+            Some(l)
+        };
+        let mut lambda = 1e-3;
+        let mut history = Vec::new();
+        let mut epochs = 0;
+        let mut residual_count = 0;
+        let mut best = (self.clone(), f64::INFINITY, 0usize);
+        for epoch in 1..=cfg.epochs {
+            let (jy, y) = self.output_jacobian(x, &DMatrix::zeros(no, x.ncols()));
+            let mut rows: Vec<MappedResidual> = Vec::with_capacity(train_idx.len());
+            for &p in &train_idx {
+                let yp: Vec<f64> = (0..no).map(|o| y[o + no * p]).collect();
+                match residual(p, &yp) {
+                    Some(r) => rows.push(r),
+                    None => break,
+                }
+            }
+            if rows.len() < train_idx.len() {
+                break;
+            }
+            residual_count = rows.iter().map(|(r, _)| r.len()).sum();
+            let mut j = DMatrix::zeros(residual_count, jy.ncols());
+            let mut r = DVector::zeros(residual_count);
+            let mut row = 0;
+            for (&p, (rp, dr)) in train_idx.iter().zip(&rows) {
+                j.rows_mut(row, rp.len())
+                    .copy_from(&(dr * jy.rows(no * p, no)));
+                for (k, v) in rp.iter().enumerate() {
+                    r[row + k] = *v;
+                }
+                row += rp.len();
+            }
+            let loss = 0.5 * r.norm_squared();
+            if (epoch - 1) % HISTORY_EVERY == 0 {
+                history.push((2.0 * loss / residual_count.max(1) as f64).sqrt());
+            }
+            epochs = epoch;
+            if !self.levenberg_marquardt_step(&j, &r, loss, &mut lambda, &|net| {
+                loss_over(net, &train_idx)
+            }) {
+                break;
+            }
+            if !val_idx.is_empty() {
+                let lv = loss_over(self, &val_idx).unwrap_or(f64::INFINITY);
+                if lv < best.1 {
+                    best = (self.clone(), lv, epoch);
+                } else if epoch - best.2 >= cfg.patience {
+                    break;
+                }
+            }
+        }
+        let mut best_epoch = epochs;
+        let mut validation_rms = None;
+        if !val_idx.is_empty() && best.1.is_finite() {
+            *self = best.0;
+            best_epoch = best.2;
+            let count = residual_count.max(1) as f64 / train_idx.len().max(1) as f64;
+            validation_rms = Some((2.0 * best.1 / (count * val_idx.len() as f64)).sqrt());
+        }
+        let final_loss = loss_over(self, &train_idx).unwrap_or(f64::NAN);
+        let mut out = self.outcome_through(epochs, history, residual_count, final_loss);
+        out.best_epoch = best_epoch;
+        out.validation_rms = validation_rms;
+        out
+    }
+
+    fn outcome_through(
+        &self,
+        epochs: usize,
+        history: Vec<f64>,
+        residuals: usize,
+        loss: f64,
+    ) -> TrainOutcome {
+        TrainOutcome {
+            epochs,
+            best_epoch: epochs,
+            train_rms: (2.0 * loss / residuals.max(1) as f64).sqrt(),
+            validation_rms: None,
             history,
         }
     }

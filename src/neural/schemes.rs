@@ -121,6 +121,56 @@ pub struct NkModel {
     pub network: Network,
 }
 
+/// T⁻¹: angles from their (sin, cos) pair by atan2, other coordinates as they are.
+pub(crate) fn decode_trig(y: &[f64], is_angle: &[bool]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(is_angle.len());
+    let mut k = 0;
+    for &a in is_angle {
+        if a {
+            out.push(y[k].atan2(y[k + 1]));
+            k += 2;
+        } else {
+            out.push(y[k]);
+            k += 1;
+        }
+    }
+    out
+}
+
+/// Which joint and which pose coordinates of `nominal` are angles; refuses fewer than two
+/// training samples.
+pub(crate) fn angle_flags(
+    nominal: &dyn Kinematics,
+    samples: usize,
+) -> Result<(Vec<bool>, Vec<bool>), NeuralError> {
+    if samples < 2 {
+        return Err(NeuralError::TooFewSamples { got: samples });
+    }
+    Ok((
+        (0..nominal.joint_count())
+            .map(|i| nominal.joint_is_angle(i))
+            .collect(),
+        (0..nominal.pose_len())
+            .map(|i| nominal.pose_is_angle(i))
+            .collect(),
+    ))
+}
+
+/// Gives every encoded cosine output (from `offset` on, one (sin, cos) pair per angle in
+/// `is_angle`) the scale of its sine: cos dθ barely varies, and scaling it alone would let
+/// magnified noise in it dominate the loss and early stopping.
+pub(crate) fn share_sine_scale(scaler: &mut Scaler, is_angle: &[bool], offset: usize) {
+    let mut k = offset;
+    for &a in is_angle {
+        if a {
+            scaler.scale[k + 1] = scaler.scale[k];
+            k += 2;
+        } else {
+            k += 1;
+        }
+    }
+}
+
 fn sum_coords(x: &[f64], d: &[f64], is_angle: &[bool]) -> Vec<f64> {
     x.iter()
         .zip(d)
@@ -162,20 +212,7 @@ impl NkModel {
     fn decode_correction(y: &[f64], is_angle: &[bool], sum: AngularSum) -> Vec<f64> {
         match sum {
             AngularSum::Plain => y.to_vec(),
-            AngularSum::Trig => {
-                let mut out = Vec::with_capacity(is_angle.len());
-                let mut k = 0;
-                for &a in is_angle {
-                    if a {
-                        out.push(y[k].atan2(y[k + 1]));
-                        k += 2;
-                    } else {
-                        out.push(y[k]);
-                        k += 1;
-                    }
-                }
-                out
-            }
+            AngularSum::Trig => decode_trig(y, is_angle),
         }
     }
 
@@ -196,15 +233,7 @@ impl NkModel {
         angular_sum: AngularSum,
         cfg: &TrainConfig,
     ) -> Result<(Self, TrainOutcome), NeuralError> {
-        if data.len() < 2 {
-            return Err(NeuralError::TooFewSamples { got: data.len() });
-        }
-        let joint_angle: Vec<bool> = (0..nominal.joint_count())
-            .map(|i| nominal.joint_is_angle(i))
-            .collect();
-        let pose_angle: Vec<bool> = (0..nominal.pose_len())
-            .map(|i| nominal.pose_is_angle(i))
-            .collect();
+        let (joint_angle, pose_angle) = angle_flags(nominal, data.len())?;
         let mut inputs = Vec::with_capacity(data.len());
         let mut targets = Vec::with_capacity(data.len());
         let flags = if scheme.corrects_joints() {
@@ -241,17 +270,7 @@ impl NkModel {
         let input_scaler = Scaler::fit(&inputs);
         let mut output_scaler = Scaler::fit(&targets);
         if angular_sum == AngularSum::Trig {
-            // cos dθ barely varies: scale it like sin dθ so neither the loss nor early stopping
-            // is dominated by magnified noise in it.
-            let mut k = 0;
-            for &a in flags.iter() {
-                if a {
-                    output_scaler.scale[k + 1] = output_scaler.scale[k];
-                    k += 2;
-                } else {
-                    k += 1;
-                }
-            }
+            share_sine_scale(&mut output_scaler, flags, 0);
         }
         let x = columns(
             &inputs
