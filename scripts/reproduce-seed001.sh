@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Reproduces seed 001 (neural-network calibration, Legnani & Tiboni): Tables 4–5 (2-DOF SCARA,
+# Reproduces seed 001 (neural-network calibration, Legnani & Tiboni): Tables 4–5 and Fig. 7 (2-DOF SCARA,
 # all seven direct schemes, three cases), 6–8 (random errors, apparent/actual error, FI), 10–12
 # (Stewart platform, inverse schemes 2 and 4) and 16–18 (3-DOF SCARA, direct schemes 3 and 4), each
 # beside the paper's numbers; then the three-way comparison on the RV-M2 paper scenario
@@ -13,7 +13,7 @@ cargo build --release --quiet
 rigcal=target/release/rigcal
 
 echo "== seed 001 tables (Table 5: Levenberg–Marquardt fits beside the paper's gradient descent; the others: gradient descent with momentum, η = 0.01, momentum 0.9, early stopping)"
-$rigcal reproduce seed001 --table 5 --table 7 --table 11 --table 18 --out "$out"
+$rigcal reproduce seed001 --table 5 --table 7 --table 11 --table 18 --figure 7 --out "$out"
 
 echo "== RV-M2 paper scenario: three calibrations on the same 2200 measurements"
 $rigcal compare --rig rigs/rv-m2-ideal.toml --scenario sim/paper-sim.toml --out "$out/compare-rv-m2"

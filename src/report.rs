@@ -332,3 +332,96 @@ pub fn plot_traces(
     }
     root.present().map_err(|e| plot_err(file, e))
 }
+
+/// One panel of [`plot_log_curves`]: a title and named curves of (x, y) points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CurvePanel {
+    /// Panel title.
+    pub title: String,
+    /// (name, points); points with a non-positive or non-finite coordinate are skipped.
+    pub curves: Vec<(String, Vec<(f64, f64)>)>,
+}
+
+/// Plots panels side by side on logarithmic axes (SVG): learning curves and the like.
+pub fn plot_log_curves(
+    file: &Path,
+    title: &str,
+    x_desc: &str,
+    y_desc: &str,
+    panels: &[CurvePanel],
+) -> Result<(), PathError> {
+    let positive = |&(x, y): &(f64, f64)| x > 0.0 && y > 0.0 && x.is_finite() && y.is_finite();
+    let points = || {
+        panels
+            .iter()
+            .flat_map(|p| p.curves.iter().flat_map(|(_, c)| c.iter().copied()))
+            .filter(positive)
+    };
+    let fold = |f: fn(f64, f64) -> f64, init: f64, pick: fn((f64, f64)) -> f64| {
+        points().map(pick).fold(init, f)
+    };
+    let (x0, x1) = (
+        fold(f64::min, f64::INFINITY, |p| p.0),
+        fold(f64::max, 0.0, |p| p.0),
+    );
+    let (y0, y1) = (
+        fold(f64::min, f64::INFINITY, |p| p.1),
+        fold(f64::max, 0.0, |p| p.1),
+    );
+    if !(x0.is_finite() && y0.is_finite()) {
+        return Err(plot_err(file, "no positive points to plot"));
+    }
+    let root = SVGBackend::new(file, (420 * panels.len().max(1) as u32, 480)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| plot_err(file, e))?;
+    let root = root
+        .titled(title, ("sans-serif", 20))
+        .map_err(|e| plot_err(file, e))?;
+    for (k, (area, panel)) in root
+        .split_evenly((1, panels.len().max(1)))
+        .iter()
+        .zip(panels)
+        .enumerate()
+    {
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, ("sans-serif", 16))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(
+                (x0..x1.max(x0 * 1.01)).log_scale(),
+                (y0 / 1.5..y1 * 1.5).log_scale(),
+            )
+            .map_err(|e| plot_err(file, e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(y_desc)
+            .x_label_formatter(&|v| format!("{v:.0}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(|e| plot_err(file, e))?;
+        for (s, (name, curve)) in panel.curves.iter().enumerate() {
+            let c = Palette99::pick(s).to_rgba();
+            chart
+                .draw_series(LineSeries::new(
+                    curve.iter().copied().filter(positive),
+                    c.stroke_width(2),
+                ))
+                .map_err(|e| plot_err(file, e))?
+                .label(name.clone())
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2))
+                });
+        }
+        if k == 0 {
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| plot_err(file, e))?;
+        }
+    }
+    root.present().map_err(|e| plot_err(file, e))
+}

@@ -319,3 +319,41 @@ fn import_converts_units_keeps_columns_and_names_bad_cells() {
     assert!(!ok);
     assert!(err.contains("no column `b5`"), "{err}");
 }
+
+#[test]
+fn reproduce_writes_fig7_learning_curves_that_fall() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ok, out, err) = rigcal(&[
+        "reproduce",
+        "seed001",
+        "--figure",
+        "7",
+        "--out",
+        s(dir.path()),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("Fig. 7"), "{out}");
+    let svg = std::fs::read_to_string(dir.path().join("seed001-fig7.svg")).unwrap();
+    assert!(svg.contains("case 3") && svg.contains("scheme 7"));
+    let csv = std::fs::read_to_string(dir.path().join("seed001-fig7.csv")).unwrap();
+    let mut curves: std::collections::BTreeMap<(u32, u32), Vec<(u32, f64)>> = Default::default();
+    for line in csv.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let (case, scheme) = (f[0].parse().unwrap(), f[1].parse().unwrap());
+        curves
+            .entry((case, scheme))
+            .or_default()
+            .push((f[3].parse().unwrap(), f[4].parse().unwrap()));
+    }
+    assert_eq!(curves.len(), 21, "3 cases × 7 schemes");
+    for ((case, scheme), points) in &curves {
+        assert!(points.windows(2).all(|w| w[0].0 < w[1].0));
+        let (first, last) = (points[0].1, points[points.len() - 1].1);
+        assert!(
+            last < first / 10.0,
+            "case {case} scheme {scheme}: {first} → {last}"
+        );
+    }
+    let (ok, _, err) = rigcal(&["reproduce", "seed001", "--figure", "3"]);
+    assert!(!ok && err.contains("figure 3 is not reproduced"), "{err}");
+}

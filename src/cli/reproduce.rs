@@ -1,7 +1,8 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
 use crate::neural::network::Method;
-use crate::neural::reproduce::{table11, table18, table5, table7, ReproOptions, Table};
+use crate::neural::reproduce::{fig7, table11, table18, table5, table7, Fig7, ReproOptions, Table};
+use crate::report::{plot_log_curves, CurvePanel};
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 
@@ -11,9 +12,13 @@ pub struct Args {
     /// The paper: `seed001` (neural-network calibration).
     pub paper: String,
     /// Tables: 5 (with 4), 7 (with 6 and 8), 11 or 12 (with 10), 17 or 18 (with 16). Repeatable;
-    /// all when omitted.
+    /// all tables and figures when neither --table nor --figure is given.
     #[arg(long = "table")]
     pub tables: Vec<u32>,
+    /// Figures: 7 (learning curves of the seven direct schemes, Table 5's setting; with --out,
+    /// DIR/seed001-fig7.svg and .csv). Repeatable.
+    #[arg(long = "figure")]
+    pub figures: Vec<u32>,
     /// Epochs of batch back-propagation (Table 5: of its "paper's rule" rows; its main rows are
     /// Levenberg–Marquardt fits).
     #[arg(long, default_value_t = 20_000)]
@@ -52,11 +57,20 @@ pub fn run(a: Args) -> Result<()> {
         },
         ..ReproOptions::default()
     };
-    let tables = if a.tables.is_empty() {
+    let everything = a.tables.is_empty() && a.figures.is_empty();
+    let tables = if everything {
         vec![5, 7, 11, 18]
     } else {
         a.tables.clone()
     };
+    let figures = if everything {
+        vec![7]
+    } else {
+        a.figures.clone()
+    };
+    if let Some(f) = figures.iter().find(|&&f| f != 7) {
+        bail!("figure {f} is not reproduced: use 7");
+    }
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
@@ -87,5 +101,50 @@ pub fn run(a: Args) -> Result<()> {
             std::fs::write(&f, &text).with_context(|| format!("cannot write {}", f.display()))?;
         }
     }
+    if figures.contains(&7) {
+        let start = std::time::Instant::now();
+        let fig = fig7(&o)?;
+        println!(
+            "{}  ({:.1} s)\n",
+            fig.render(),
+            start.elapsed().as_secs_f64()
+        );
+        if let Some(dir) = &a.out {
+            write_fig7(&fig, dir)?;
+        }
+    }
+    Ok(())
+}
+
+/// Writes Fig. 7 as CSV and as an SVG of three log-log panels.
+fn write_fig7(fig: &Fig7, dir: &std::path::Path) -> Result<()> {
+    let csv = dir.join("seed001-fig7.csv");
+    std::fs::write(&csv, fig.csv()).with_context(|| format!("cannot write {}", csv.display()))?;
+    let panels: Vec<CurvePanel> = fig
+        .cases
+        .iter()
+        .enumerate()
+        .map(|(c, curves)| CurvePanel {
+            title: format!("case {}", c + 1),
+            curves: curves
+                .iter()
+                .map(|k| {
+                    (
+                        format!("scheme {}", k.scheme),
+                        k.points.iter().map(|&(i, e)| (i as f64, e)).collect(),
+                    )
+                })
+                .collect(),
+        })
+        .collect();
+    let svg = dir.join("seed001-fig7.svg");
+    plot_log_curves(
+        &svg,
+        "Seed 001 Fig. 7: mean validation error during training (2-DOF SCARA)",
+        "Levenberg–Marquardt iteration",
+        "mean validation error (mm)",
+        &panels,
+    )?;
+    println!("plot: {}  data: {}", svg.display(), csv.display());
     Ok(())
 }

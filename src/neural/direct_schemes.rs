@@ -156,6 +156,18 @@ impl OtherDirectModel {
         scheme: OtherDirect,
         cfg: &TrainConfig,
     ) -> Result<(Self, TrainOutcome), NeuralError> {
+        Self::train_observed(nominal, data, scheme, cfg, &mut |_, _| {})
+    }
+
+    /// [`OtherDirectModel::train`], calling `observe(epoch, model)` with the model as it stands
+    /// after every epoch or step (for learning curves).
+    pub fn train_observed(
+        nominal: &dyn Kinematics,
+        data: &[Sample],
+        scheme: OtherDirect,
+        cfg: &TrainConfig,
+        observe: &mut dyn FnMut(usize, &OtherDirectModel),
+    ) -> Result<(Self, TrainOutcome), NeuralError> {
         let (joint_angle, pose_angle) = angle_flags(nominal, data.len())?;
         let mut inputs = Vec::with_capacity(data.len());
         let mut targets = Vec::with_capacity(data.len());
@@ -214,6 +226,11 @@ impl OtherDirectModel {
             output_scaler,
             network: network.clone(),
         };
+        let mut view = model.clone();
+        let mut watch = |epoch: usize, net: &Network| {
+            view.network.clone_from(net);
+            observe(epoch, &view);
+        };
         let outcome = if scheme == OtherDirect::Scheme3 {
             let residual = |p: usize, y: &[f64]| model.scheme3_residual(nominal, &data[p], y);
             let lm = TrainConfig {
@@ -221,7 +238,7 @@ impl OtherDirectModel {
                 patience: cfg.patience.min(SCHEME3_PATIENCE),
                 ..*cfg
             };
-            network.train_through(&x, &residual, &lm)
+            network.train_through_observed(&x, &residual, &lm, &mut watch)
         } else {
             let t = columns(
                 &targets
@@ -229,7 +246,7 @@ impl OtherDirectModel {
                     .map(|r| model.output_scaler.apply(r))
                     .collect::<Vec<_>>(),
             );
-            network.train(&x, &t, cfg)
+            network.train_observed(&x, &t, cfg, &mut watch)
         };
         model.network = network;
         Ok((model, outcome))

@@ -303,6 +303,18 @@ impl Network {
     /// fraction, that share of the patterns (chosen from the seed) is held out, training stops
     /// after `patience` epochs without improvement, and the best-validation weights are restored.
     pub fn train(&mut self, x: &DMatrix<f64>, t: &DMatrix<f64>, cfg: &TrainConfig) -> TrainOutcome {
+        self.train_observed(x, t, cfg, &mut |_, _| {})
+    }
+
+    /// [`Network::train`], calling `observe(epoch, network)` after every epoch's update (for
+    /// learning curves).
+    pub fn train_observed(
+        &mut self,
+        x: &DMatrix<f64>,
+        t: &DMatrix<f64>,
+        cfg: &TrainConfig,
+        observe: &mut dyn FnMut(usize, &Network),
+    ) -> TrainOutcome {
         let (val_idx, train_idx) = validation_split(x.ncols(), cfg);
         let (val_idx, train_idx) = (val_idx.as_slice(), train_idx.as_slice());
         let n_val = val_idx.len();
@@ -361,6 +373,7 @@ impl Network {
                 }
             }
             epochs = epoch;
+            observe(epoch, self);
             if n_val > 0 {
                 let lv = self.loss(&xv, &tv);
                 if lv < best_val {
@@ -408,6 +421,17 @@ impl Network {
         x: &DMatrix<f64>,
         residual: &dyn Fn(usize, &[f64]) -> Option<MappedResidual>,
         cfg: &TrainConfig,
+    ) -> TrainOutcome {
+        self.train_through_observed(x, residual, cfg, &mut |_, _| {})
+    }
+
+    /// [`Network::train_through`], calling `observe(step, network)` after every step.
+    pub fn train_through_observed(
+        &mut self,
+        x: &DMatrix<f64>,
+        residual: &dyn Fn(usize, &[f64]) -> Option<MappedResidual>,
+        cfg: &TrainConfig,
+        observe: &mut dyn FnMut(usize, &Network),
     ) -> TrainOutcome {
         let no = self.outputs();
         let (val_idx, train_idx) = validation_split(x.ncols(), cfg);
@@ -461,6 +485,7 @@ impl Network {
             }) {
                 break;
             }
+            observe(epoch, self);
             if !val_idx.is_empty() {
                 let lv = loss_over(self, &val_idx).unwrap_or(f64::INFINITY);
                 if lv < best.1 {

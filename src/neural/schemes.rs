@@ -233,6 +233,19 @@ impl NkModel {
         angular_sum: AngularSum,
         cfg: &TrainConfig,
     ) -> Result<(Self, TrainOutcome), NeuralError> {
+        Self::train_observed(nominal, data, scheme, angular_sum, cfg, &mut |_, _| {})
+    }
+
+    /// [`NkModel::train`], calling `observe(epoch, model)` with the model as it stands after
+    /// every epoch (for learning curves).
+    pub fn train_observed(
+        nominal: &dyn Kinematics,
+        data: &[Sample],
+        scheme: Scheme,
+        angular_sum: AngularSum,
+        cfg: &TrainConfig,
+        observe: &mut dyn FnMut(usize, &NkModel),
+    ) -> Result<(Self, TrainOutcome), NeuralError> {
         let (joint_angle, pose_angle) = angle_flags(nominal, data.len())?;
         let mut inputs = Vec::with_capacity(data.len());
         let mut targets = Vec::with_capacity(data.len());
@@ -284,20 +297,23 @@ impl NkModel {
                 .map(|r| output_scaler.apply(r))
                 .collect::<Vec<_>>(),
         );
-        let mut network = Network::new(x.nrows(), cfg.hidden, t.nrows(), cfg.seed);
-        let outcome = network.train(&x, &t, cfg);
-        Ok((
-            Self {
-                scheme,
-                angular_sum,
-                joint_angle,
-                pose_angle,
-                input_scaler,
-                output_scaler,
-                network,
-            },
-            outcome,
-        ))
+        let mut model = Self {
+            scheme,
+            angular_sum,
+            joint_angle,
+            pose_angle,
+            input_scaler,
+            output_scaler,
+            network: Network::new(x.nrows(), cfg.hidden, t.nrows(), cfg.seed),
+        };
+        let mut network = model.network.clone();
+        let mut view = model.clone();
+        let outcome = network.train_observed(&x, &t, cfg, &mut |epoch, net| {
+            view.network.clone_from(net);
+            observe(epoch, &view);
+        });
+        model.network = network;
+        Ok((model, outcome))
     }
 
     /// The pose predicted for joint values `q` (direct schemes; an inverse scheme is inverted
