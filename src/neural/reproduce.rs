@@ -353,6 +353,23 @@ impl Table5Scheme {
     }
 }
 
+/// Runs `f` for cases 1, 2 and 3 of Table 4 on threads of their own; results in case order.
+fn for_each_case<T: Send>(
+    f: impl Fn(u8) -> Result<T, NeuralError> + Sync,
+) -> Result<Vec<T>, NeuralError> {
+    std::thread::scope(|scope| {
+        let f = &f;
+        let handles: Vec<_> = (1..=3u8).map(|case| scope.spawn(move || f(case))).collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join()
+                    .unwrap_or_else(|panic| std::panic::resume_unwind(panic))
+            })
+            .collect()
+    })
+}
+
 /// Everything Table 5 computes for one case.
 struct Table5Case {
     before: (f64, f64),
@@ -435,19 +452,7 @@ pub fn table5(o: &ReproOptions) -> Result<Table, NeuralError> {
     let paper_before = [[6.67, 10.2], [8.93, 17.0], [0.76, 1.26]];
     let poses = o.table5_poses.max(2);
     let schemes = Table5Scheme::ALL;
-    let per_case: Vec<Result<Table5Case, NeuralError>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (1..=3u8)
-            .map(|case| scope.spawn(move || table5_case(o, case, poses)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or(Err(NeuralError::TooFewSamples { got: 0 }))
-            })
-            .collect()
-    });
-    let per_case = per_case.into_iter().collect::<Result<Vec<_>, _>>()?;
+    let per_case = for_each_case(|case| table5_case(o, case, poses))?;
     // [scheme][hidden index][case] → (validation mean, training mean, seconds)
     let fits: Vec<Vec<[Fit; 3]>> = (0..schemes.len())
         .map(|k| {
@@ -1199,20 +1204,8 @@ impl Fig7 {
 /// [`FIG7_CHECKPOINTS`].
 pub fn fig7(o: &ReproOptions) -> Result<Fig7, NeuralError> {
     let poses = o.table5_poses.max(2);
-    let cases: Vec<Result<Vec<Curve>, NeuralError>> = std::thread::scope(|scope| {
-        let handles: Vec<_> = (1..=3u8)
-            .map(|case| scope.spawn(move || fig7_case(o, case, poses)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| {
-                h.join()
-                    .unwrap_or(Err(NeuralError::TooFewSamples { got: 0 }))
-            })
-            .collect()
-    });
     Ok(Fig7 {
-        cases: cases.into_iter().collect::<Result<_, _>>()?,
+        cases: for_each_case(|case| fig7_case(o, case, poses))?,
     })
 }
 
