@@ -4,7 +4,7 @@
 # (Stewart platform, inverse schemes 2 and 4) and 16–18 (3-DOF SCARA, direct schemes 3 and 4), each
 # beside the paper's numbers; then the three-way comparison on the RV-M2 paper scenario
 # (conventional, variable D-H + FCMAC, neural network; 2200 measurements, Fig. 6 and 7 paths).
-# Usage: scripts/reproduce-seed001.sh [OUT_DIR]   (default out/seed001; about half a minute)
+# Usage: scripts/reproduce-seed001.sh [OUT_DIR]   (default out/seed001; about 25 s after the build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out="${1:-out/seed001}"

@@ -18,7 +18,10 @@ use rigcal::devices::{
 use rigcal::kinematics::{JointSpec, Robot};
 use rigcal::recording::{Recording, Status};
 use rigcal::rig::{Instrument, Rig};
-use rigcal::session::{plan, run_session, PlanOptions, PlannedPoint, Progress, SessionOptions};
+use rigcal::session::{
+    estimate, plan, registration_points, run_session, ContactSettings, PlanOptions, PlannedPoint,
+    Progress, RigSpeeds, SessionOptions,
+};
 use rigcal::world::Scenario;
 
 const T: Duration = Duration::from_secs(30);
@@ -185,6 +188,36 @@ fn a_dry_run_session_end_to_end_is_accepted_by_identify() {
     assert!(
         info.contains("[registration]") && info.contains("rms_mm"),
         "{info}"
+    );
+    // The rig-time estimate plans the registration poses the session measured, and comes
+    // within 30 % of the rig time the dry run took.
+    let seed = options(dir.path()).seed;
+    let reg = registration_points(&rig, 6, seed);
+    let measured_reg: Vec<_> = rec
+        .rows
+        .iter()
+        .filter(|m| m.region.as_deref() == Some("reg") && m.table.is_some())
+        .collect();
+    assert_eq!(reg.len(), measured_reg.len());
+    for (planned, row) in reg.iter().zip(&measured_reg) {
+        for (a, b) in planned.q.iter().zip(&row.q) {
+            // The Movemaster commands joints in steps of 0.1°.
+            assert!((a - b).abs().to_degrees() < 0.051, "{planned:?} vs {row:?}");
+        }
+    }
+    let est = estimate(
+        &rig,
+        &[reg, pts.clone()].concat(),
+        &RigSpeeds::of(&rig),
+        &ContactSettings::default(),
+    );
+    assert_eq!(est.registration_points, 6);
+    let ratio = est.total_s / report.rig_time_s;
+    assert!(
+        (0.7..1.3).contains(&ratio),
+        "estimate {} s vs {} s",
+        est.total_s,
+        report.rig_time_s
     );
     let out = Command::new(env!("CARGO_BIN_EXE_rigcal"))
         .args(["identify", "--rig", "rigs/rv-m2.toml", "--recording"])

@@ -185,7 +185,7 @@ pub fn run(a: Args) -> Result<()> {
         "real rig: distance to target measured by the rig itself, mean / max in mm"
     );
     summary_rows(&mut summary, &rig_path, &rig_results);
-    let _ = writeln!(summary, "files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt", a.out.display());
+    let _ = writeln!(summary, "files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt", a.out.display());
     heading("Summary");
     print!("{summary}");
     let file = out("summary.txt");

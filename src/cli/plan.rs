@@ -97,10 +97,15 @@ pub(crate) fn report_dropped(rig: &Rig, p: &Plan, out: &Path) -> Result<()> {
 /// One line on the estimate.
 pub(crate) fn describe(e: &RigTimeEstimate) -> String {
     format!(
-        "estimated rig time {:.0} s ({:.2} h) for {} points: {:.0} s motion, {:.0} s contact; the paper's ~5 s per point would be {:.0} s",
+        "estimated rig time {:.0} s ({:.2} h) for {} points{}: {:.0} s motion, {:.0} s contact; the paper's ~5 s per point would be {:.0} s",
         e.total_s,
         e.total_s / 3600.0,
-        e.points,
+        e.points - e.registration_points,
+        if e.registration_points > 0 {
+            format!(" and {} registration poses", e.registration_points)
+        } else {
+            String::new()
+        },
         e.motion_s,
         e.contact_s,
         5.0 * e.points as f64

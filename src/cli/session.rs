@@ -11,8 +11,8 @@ use crate::kinematics::Robot;
 use crate::recording::SessionInfo;
 use crate::rig::Rig;
 use crate::session::{
-    estimate, plan, read_plan, run_session, write_plan, ContactSettings, Progress, RigSpeeds,
-    SessionOptions,
+    estimate, plan, read_plan, registration_points, run_session, write_plan, ContactSettings,
+    Progress, RigSpeeds, SessionOptions,
 };
 use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
@@ -109,9 +109,16 @@ pub fn run(a: Args) -> Result<()> {
     // Both a fresh and a resumed run measure the plan as read back from the file.
     let points = read_plan(&plan_path, &rig)
         .with_context(|| format!("reading the session plan {}", plan_path.display()))?;
+    // The registration step measures its own poses first (none when reused or on a
+    // point-sensor rig).
+    let registration = if a.registration_from.is_none() {
+        registration_points(&rig, a.registration_points, seed)
+    } else {
+        Vec::new()
+    };
     let est = estimate(
         &rig,
-        &points,
+        &[registration, points.clone()].concat(),
         &RigSpeeds::of(&rig),
         &ContactSettings::default(),
     );

@@ -861,7 +861,7 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
     ];
     let _ = writeln!(
         text,
-        "  {:<16} {:<8} {:>15} {:>15} {:>15} {:>15} {:>6} {:>6}   paper: {:>11} {:>11}",
+        "  {:<16} {:<8} {:>15} {:>15} {:>15} {:>15} {:>6} {:>6}   paper: {:>11} {:>11} {:>11}",
         "errors",
         "scheme",
         "xyz ap (mm)",
@@ -871,7 +871,8 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
         "FIxyz",
         "FIang",
         "xyz ap",
-        "xyz ac"
+        "xyz ac",
+        "ang ac"
     );
     let mut k = 0;
     for (ci, cscale) in [(0, 1.0), (1, 0.5)] {
@@ -926,7 +927,7 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
                     |f: Option<f64>| f.map_or("-".to_string(), |v| format!("{:.0}%", v * 100.0));
                 let _ = writeln!(
                     text,
-                    "  {:<16} {:<8} {} {} {} {} {:>6} {:>6}   paper: {:>5.3} {:>5.3} {:>5.3} {:>5.3}",
+                    "  {:<16} {:<8} {} {} {} {} {:>6} {:>6}   paper: {:>5.3} {:>5.3} {:>5.3} {:>5.3} {:>5.3} {:>5.3}",
                     label,
                     scheme.name(),
                     fmt_stats(apx),
@@ -938,7 +939,9 @@ pub fn table11(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
                     paper[0],
                     paper[1],
                     paper[4],
-                    paper[5]
+                    paper[5],
+                    paper[6],
+                    paper[7]
                 );
                 t.values.push((
                     format!("{label} {} xyz ac mean", scheme.name()),

@@ -16,7 +16,8 @@ pub mod run;
 pub use journal::{Journal, JournalError};
 pub use measurer::SessionMeasurer;
 pub use plan::{
-    estimate, plan, read_plan, write_plan, ContactSettings, Ordering, Plan, PlanError, PlanOptions,
-    PlannedPoint, RigSpeeds, RigTimeEstimate,
+    estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
+    ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint, RigSpeeds,
+    RigTimeEstimate,
 };
 pub use run::{run_session, Progress, Session, SessionError, SessionOptions, SessionReport};

@@ -87,6 +87,12 @@ pub struct PlanOptions {
     /// Room the contact needs below and above the nominal contact height in the table's z
     /// travel (approach margin + travel clearance, mm); points with less are dropped.
     pub z_room_mm: f64,
+    /// Room kept inside the table's x and y travel (mm); points with less are dropped. The
+    /// session moves the table through the *fitted* registration, which differs from the rig
+    /// file's nominal table pose by the set-up's offset and the arm's own errors (on
+    /// `sim/rig-realistic.toml` by up to about 3 mm across the travel): a point planned at the
+    /// edge of the travel would be refused there.
+    pub xy_room_mm: f64,
 }
 
 impl Default for PlanOptions {
@@ -99,6 +105,7 @@ impl Default for PlanOptions {
             layer_mm: 2.0,
             order: Ordering::NearestNeighbour,
             z_room_mm: 5.0,
+            xy_room_mm: 5.0,
         }
     }
 }
@@ -156,6 +163,47 @@ pub fn table_target(rig: &Rig, q: &[f64]) -> Option<[f64; 3]> {
     Some([t.x, t.y, t.z])
 }
 
+/// Random draws allowed per registration pose before the search gives up.
+const REGISTRATION_DRAWS_PER_POSE: usize = 500;
+
+/// The registration step's candidate poses (table rig), in the order a session measures them:
+/// uniform random joint values, seeded from the session seed, kept when the rig can measure
+/// them. The session takes candidates until it has its registration observations; the rig-time
+/// estimate takes as many as the session asks for. Ends early when no measurable pose turns up
+/// within [`REGISTRATION_DRAWS_PER_POSE`] draws.
+pub fn registration_candidates(
+    rig: &Rig,
+    session_seed: u64,
+) -> impl Iterator<Item = Vec<f64>> + '_ {
+    let mut rng = ChaCha8Rng::seed_from_u64(session_seed ^ 0x7265_6769_7374);
+    std::iter::from_fn(move || {
+        for _ in 0..REGISTRATION_DRAWS_PER_POSE {
+            let q = random_poses(rig.chain.joints(), rig.held(), 1, &mut rng).pop()?;
+            if rig.measurable(&q).is_ok() {
+                table_target(rig, &q)?;
+                return Some(q);
+            }
+        }
+        None
+    })
+}
+
+/// The registration poses a session with `count` registration points would measure first,
+/// as planned points (region `reg`, numbered 0) for [`estimate`]; none on a point-sensor rig.
+pub fn registration_points(rig: &Rig, count: usize, session_seed: u64) -> Vec<PlannedPoint> {
+    registration_candidates(rig, session_seed)
+        .take(count)
+        .filter_map(|q| {
+            Some(PlannedPoint {
+                point: 0,
+                region: "reg".into(),
+                table_mm: table_target(rig, &q)?,
+                q,
+            })
+        })
+        .collect()
+}
+
 /// Where a point is planned: [`table_target`] on the table rig, the nominal marker position
 /// (world mm) on a point-sensor rig.
 pub fn target_point(rig: &Rig, q: &[f64]) -> [f64; 3] {
@@ -201,22 +249,23 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             Err(reason) => dropped.push(Dropped { q, reason }),
             Ok(()) => {
                 let t = target_point(rig, &q);
-                let travel_z = match &rig.instrument {
-                    Instrument::TablePanel(tp) => Some(tp.travel_mm.z),
-                    _ => None,
-                };
-                if travel_z.is_some_and(|z| t[2] < opts.z_room_mm || t[2] > z - opts.z_room_mm) {
+                if let Instrument::TablePanel(tp) = &rig.instrument {
                     // The approach starts below the contact and ends above it: that room must
-                    // lie within the travel, or the pin is already on the panel at the start.
-                    dropped.push(Dropped {
-                        q,
-                        reason: Unmeasurable::TableTravel {
-                            axis: 'z',
-                            position_mm: t[2],
-                            travel_mm: travel_z.unwrap_or(f64::INFINITY),
-                        },
-                    });
-                    continue;
+                    // lie within the z travel, or the pin is already on the panel at the start.
+                    let room = [opts.xy_room_mm, opts.xy_room_mm, opts.z_room_mm];
+                    let short =
+                        (0..3).find(|&k| t[k] < room[k] || t[k] > tp.travel_mm[k] - room[k]);
+                    if let Some(k) = short {
+                        dropped.push(Dropped {
+                            q,
+                            reason: Unmeasurable::TableTravel {
+                                axis: ['x', 'y', 'z'][k],
+                                position_mm: t[k],
+                                travel_mm: tp.travel_mm[k],
+                            },
+                        });
+                        continue;
+                    }
                 }
                 let c = space.coords(&q);
                 let region = boxes
@@ -449,8 +498,10 @@ pub struct RigTimeEstimate {
     pub motion_s: f64,
     /// Of which contact approaches (s).
     pub contact_s: f64,
-    /// Points.
+    /// Points, registration poses included.
     pub points: usize,
+    /// Of which registration poses (region `reg`).
+    pub registration_points: usize,
 }
 
 /// Estimates the rig time of `points` from the device speeds: per point, the slower of the arm
@@ -466,6 +517,7 @@ pub fn estimate(
     let mut t_at: Option<[f64; 3]> = None;
     let mut est = RigTimeEstimate {
         points: points.len(),
+        registration_points: points.iter().filter(|p| p.region == "reg").count(),
         ..Default::default()
     };
     for p in points {

@@ -24,13 +24,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use nalgebra::{Isometry3, Vector3};
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 use crate::devices::contact::{approach_speed, measure_contact, Contact};
 use crate::devices::emulators::world_physics::SharedWorld;
 use crate::devices::{DeviceError, RigDevices};
-use crate::identification::{random_poses, register, Observation};
+use crate::identification::{register, Observation};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::recording::{
     write_session, Measurement, RecordingError, RecordingWriter, RegistrationInfo, SessionInfo,
@@ -38,7 +36,9 @@ use crate::recording::{
 };
 use crate::rig::Rig;
 use crate::session::journal::{Journal, JournalError};
-use crate::session::plan::{approach_signs, table_target, via_pose, ContactSettings, PlannedPoint};
+use crate::session::plan::{
+    approach_signs, registration_candidates, table_target, via_pose, ContactSettings, PlannedPoint,
+};
 
 /// The recording's file name in a session directory.
 pub const CSV_FILE: &str = "measurements.csv";
@@ -1023,20 +1023,15 @@ impl Runner<'_> {
             });
             return self.write_info();
         }
-        let mut rng = ChaCha8Rng::seed_from_u64(self.opts.seed ^ 0x7265_6769_7374);
+        let rig = self.rig;
+        let mut candidates = registration_candidates(rig, self.opts.seed);
         let mut obs = Vec::new();
-        let mut drawn = 0;
         let mut k = 0usize;
-        while obs.len() < n && drawn < n * 500 {
-            drawn += 1;
-            let Some(q) = random_poses(self.rig.chain.joints(), self.rig.held(), 1, &mut rng).pop()
-            else {
+        while obs.len() < n {
+            let Some(q) = candidates.next() else {
                 break;
             };
-            if self.rig.measurable(&q).is_err() {
-                continue;
-            }
-            let Some(nominal) = table_target(self.rig, &q) else {
+            let Some(nominal) = table_target(rig, &q) else {
                 break;
             };
             k += 1;
