@@ -651,6 +651,25 @@ pub fn header(joints: &[JointSpec], extra: &[String]) -> String {
     cols.join(",")
 }
 
+/// The joints and position of `m` exactly as [`Recording::read`] will return them from the
+/// file [`RecordingWriter`] writes (joints to 10⁻⁶ deg or mm, positions to 10⁻⁵ mm): what a
+/// consumer of a live session sees is then what a later reader of its recording sees.
+pub fn as_recorded(m: &Measurement, joints: &[JointSpec]) -> (Vec<f64>, Option<Vector3<f64>>) {
+    let round = |v: f64, digits: usize| -> f64 { format!("{v:.digits$}").parse().unwrap_or(v) };
+    let q = joints
+        .iter()
+        .zip(&m.q)
+        .map(|(spec, v)| {
+            spec.kind
+                .from_file_units(round(spec.kind.to_file_units(*v), 6))
+        })
+        .collect();
+    let p = m
+        .position
+        .map(|p| Vector3::new(round(p.x, 5), round(p.y, 5), round(p.z, 5)));
+    (q, p)
+}
+
 fn row_text(m: &Measurement, joints: &[JointSpec], n_extra: usize) -> String {
     let mut s = String::new();
     let _ = write!(s, "{},", m.seq);

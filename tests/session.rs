@@ -2,7 +2,7 @@
 //! `rigcal identify` accepts, kill-and-resume of the binary, fault injection, and a property
 //! test of the commands actually sent.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -275,7 +275,12 @@ fn fields(dir: &Path) -> Vec<Vec<String>> {
 
 #[test]
 fn a_session_killed_at_random_moments_resumes_to_the_uninterrupted_recording() {
-    kill_and_resume(&|dir, resume| session_cmd(dir, resume), 20, 7);
+    kill_and_resume(
+        &|dir, resume| session_cmd(dir, resume),
+        20,
+        7,
+        Duration::from_millis(50),
+    );
 }
 
 /// The same on the ideal-instrument rig (arm and simulated point sensor), with noise, so the
@@ -290,12 +295,67 @@ fn a_point_sensor_session_killed_and_resumed_matches_the_uninterrupted_one() {
             resume,
         )
     };
-    kill_and_resume(&cmd, 5, 11);
+    kill_and_resume(&cmd, 5, 11, Duration::from_millis(50));
+}
+
+/// Planning mode through a session (`calibrate --session`), killed at random moments and
+/// resumed with `--resume`: the division replays the finished points from the recording and
+/// measures on, so recording and model end as in an uninterrupted run.
+#[test]
+fn a_planning_mode_session_killed_and_resumed_matches_the_uninterrupted_one() {
+    let cmd = |dir: &Path, resume: bool| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_rigcal"));
+        c.args([
+            "calibrate",
+            "--rig",
+            "rigs/rv-m2.toml",
+            "--sim",
+            SCENARIO,
+            "--accuracy-mm",
+            "0.5",
+            "--learner",
+            "none",
+            "--session",
+        ])
+        .arg(dir)
+        .arg("--out")
+        .arg(dir.join("model.json"))
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null());
+        if resume {
+            c.arg("--resume");
+        }
+        c
+    };
+    let dirs = kill_and_resume(&cmd, 6, 13, Duration::from_secs(3));
+    let model = |d: &Path| -> serde_json::Value {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(d.join("model.json")).unwrap()).unwrap();
+        v["fitted_from"]["recording"] = serde_json::Value::Null;
+        v
+    };
+    assert_eq!(model(&dirs.0), model(&dirs.1));
+    // Resumed with other options, the division asks for other points: refused, clearly.
+    let out = cmd(&dirs.1, true)
+        .args(["--seed", "2"])
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("resume with the same rig, scenario, seed"),
+        "{err}"
+    );
 }
 
 /// Runs a session to the end, then again killed (SIGKILL) at random moments and resumed until
 /// `want_kills` kills have happened, and compares the two recordings.
-fn kill_and_resume(cmd: &dyn Fn(&Path, bool) -> Command, want_kills: usize, seed: u64) {
+fn kill_and_resume(
+    cmd: &dyn Fn(&Path, bool) -> Command,
+    want_kills: usize,
+    seed: u64,
+    longest_run: Duration,
+) -> (PathBuf, PathBuf, tempfile::TempDir) {
     let base = tempfile::tempdir().unwrap();
     let a = base.path().join("a");
     let t0 = std::time::Instant::now();
@@ -303,7 +363,7 @@ fn kill_and_resume(cmd: &dyn Fn(&Path, bool) -> Command, want_kills: usize, seed
     assert!(st.success());
     // Kill moments spread over a whole run, so they land in every phase (plan, homing,
     // registration, points), whatever the machine's speed.
-    let whole_us = (t0.elapsed().as_micros() as u64).clamp(2_000, 50_000);
+    let whole_us = (t0.elapsed().as_micros() as u64).clamp(2_000, longest_run.as_micros() as u64);
     let b = base.path().join("b");
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut kills = 0;
@@ -343,6 +403,7 @@ fn kill_and_resume(cmd: &dyn Fn(&Path, bool) -> Command, want_kills: usize, seed
     assert!(kills >= want_kills);
     compare(&a, &b);
     assert!(started.elapsed() < Duration::from_secs(60));
+    (a, b, base)
 }
 
 /// Same seq, joints, positions and status; t_s within a millisecond.

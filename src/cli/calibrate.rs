@@ -33,6 +33,11 @@ pub struct Args {
     /// With --session: a dry run on emulators of this scenario's world (virtual clock).
     #[arg(long, requires = "session")]
     pub sim: Option<PathBuf>,
+    /// With --session: continue the session in DIR after a kill, crash or power cut. Give the
+    /// first run's options again: the division asks for the points it finished once more and
+    /// gets its recorded measurements, then the session measures on.
+    #[arg(long, requires = "session")]
+    pub resume: bool,
     /// Division space.
     #[arg(long, value_enum, default_value_t = Space::Joint)]
     pub division: Space,
@@ -129,11 +134,12 @@ pub fn run(a: Args) -> Result<()> {
 /// Planning mode through a measurement session in `dir`: every measurement the division asks
 /// for is made by the devices (emulated with `--sim`) and recorded there.
 fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Result<ModelFile> {
-    use crate::session::{Session, SessionMeasurer, SessionOptions};
+    use crate::session::{recorded_requests, Session, SessionMeasurer, SessionOptions};
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
     let (devices, world) = super::session::open_rig(rig, scenario.as_ref(), false)?;
     let mut opts = SessionOptions::new(dir);
     opts.seed = a.seed;
+    opts.resume = a.resume;
     opts.fsync = !devices.clock.is_virtual();
     opts.info = crate::recording::SessionInfo {
         rig: Some(a.rig.display().to_string()),
@@ -143,7 +149,31 @@ fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Resu
         ..Default::default()
     };
     let mut session = Session::open(rig, devices, world, opts)?;
-    let mut measurer = SessionMeasurer::new(&mut session, rig);
+    // Read after opening: a resumed session has cut its recording back to the last finished
+    // point.
+    let recorded = if a.resume {
+        let rec =
+            crate::recording::Recording::read(dir, crate::kinematics::Robot::joints(&rig.chain))
+                .with_context(|| format!("reading the session {}", dir.display()))?;
+        let recorded = recorded_requests(&rec);
+        if recorded.len() != session.points_done() {
+            bail!(
+                "{}: the journal has {} finished points but the recording {} requests of region div; was it written by `rigcal calibrate --session`?",
+                dir.display(),
+                session.points_done(),
+                recorded.len()
+            );
+        }
+        eprintln!(
+            "resuming {}: {} finished points replayed to the division, then measuring on",
+            dir.display(),
+            recorded.len()
+        );
+        recorded
+    } else {
+        Vec::new()
+    };
+    let mut measurer = SessionMeasurer::resuming(&mut session, rig, recorded);
     let model = calibrate(
         rig,
         Mode::Planning(&mut measurer),
@@ -160,9 +190,13 @@ fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Resu
     let model = model?;
     let report = session.finish()?;
     println!(
-        "session {}: {} points asked for, {} measured, {} skipped, rig time {:.0} s ({:.2} h){}",
+        "session {}: {} points asked for{}, {} measured, {} skipped, rig time {:.0} s ({:.2} h){}",
         dir.display(),
         report.points,
+        match report.resumed_at {
+            Some(k) => format!(" ({k} from earlier runs, replayed; this run's counts follow)"),
+            None => String::new(),
+        },
         report.ok,
         report.skipped.len(),
         report.rig_time_s,

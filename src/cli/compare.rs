@@ -77,6 +77,7 @@ fn cal_args(a: &Args, learner: LearnerKind, out: PathBuf) -> calibrate::Args {
         scenario: None,
         session: None,
         sim: None,
+        resume: false,
         division: Space::Joint,
         accuracy_mm: a.accuracy_mm,
         max_regions: None,

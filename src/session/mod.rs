@@ -14,7 +14,7 @@ pub mod plan;
 pub mod run;
 
 pub use journal::{Journal, JournalError};
-pub use measurer::SessionMeasurer;
+pub use measurer::{recorded_requests, RecordedRequest, SessionMeasurer};
 pub use plan::{
     estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
     ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint, RigSpeeds,

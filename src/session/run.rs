@@ -81,6 +81,16 @@ pub enum SessionError {
         /// The directory.
         dir: PathBuf,
     },
+    /// A resumed planning-mode session was asked for other joints than its recording holds.
+    #[error("point {point}: the division asks for joints {asked_deg:?}° where the recording holds {recorded_deg:?}°; resume with the same rig, scenario, seed and division options as the first run")]
+    ResumeDiverged {
+        /// 1-based point number.
+        point: usize,
+        /// Joints asked for (deg or mm).
+        asked_deg: Vec<f64>,
+        /// Joints recorded (deg or mm).
+        recorded_deg: Vec<f64>,
+    },
     /// A file operation failed.
     #[error("{path}: {source}")]
     Io {
@@ -407,6 +417,7 @@ impl<'a> Session<'a> {
         };
         if next_point > 0 || r.opts.resume {
             r.report.resumed_at = Some(next_point);
+            r.report.points = next_point;
         }
         Ok(Session {
             r,
@@ -983,7 +994,10 @@ impl Runner<'_> {
                 m
             }
         };
-        let measured = m.position.map(|p| Observation { q: m.q.clone(), p });
+        // As a reader of the recording will see it, so that a resumed planning-mode session
+        // replays exactly what its first run measured.
+        let (q_file, p_file) = crate::recording::as_recorded(&m, self.rig.chain.joints());
+        let measured = p_file.map(|p| Observation { q: q_file, p });
         if measured.is_some() {
             self.report.ok += 1;
         }
