@@ -218,20 +218,7 @@ impl Recording {
         })?;
         let mut rec = read_csv(file, &csv_path, joints)?;
         if let Some(dir) = dir {
-            let toml_path = dir.join(SESSION_TOML);
-            if toml_path.exists() {
-                let text =
-                    std::fs::read_to_string(&toml_path).map_err(|source| RecordingError::Io {
-                        path: toml_path.clone(),
-                        source,
-                    })?;
-                let info: SessionInfo =
-                    toml::from_str(&text).map_err(|e| RecordingError::Session {
-                        path: toml_path.clone(),
-                        reason: e.to_string(),
-                    })?;
-                rec.session = Some(info);
-            }
+            rec.session = read_session_info(&dir)?;
         }
         Ok(rec)
     }
@@ -255,6 +242,24 @@ impl Recording {
         }
         Ok(())
     }
+}
+
+/// Reads `session.toml` from a recording directory; `None` when there is none.
+pub fn read_session_info(dir: &Path) -> Result<Option<SessionInfo>, RecordingError> {
+    let path = dir.join(SESSION_TOML);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&path).map_err(|source| RecordingError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    toml::from_str(&text)
+        .map(Some)
+        .map_err(|e| RecordingError::Session {
+            path,
+            reason: e.to_string(),
+        })
 }
 
 /// Writes `session.toml` into a recording directory.

@@ -303,16 +303,18 @@ fn a_point_sensor_session_killed_and_resumed_matches_the_uninterrupted_one() {
 /// measures on, so recording and model end as in an uninterrupted run.
 #[test]
 fn a_planning_mode_session_killed_and_resumed_matches_the_uninterrupted_one() {
-    let cmd = |dir: &Path, resume: bool| {
+    let planning = |dir: &Path, resume: bool, sim: &str, accuracy: &str, seed: &str| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_rigcal"));
         c.args([
             "calibrate",
             "--rig",
             "rigs/rv-m2.toml",
             "--sim",
-            SCENARIO,
+            sim,
             "--accuracy-mm",
-            "0.5",
+            accuracy,
+            "--seed",
+            seed,
             "--learner",
             "none",
             "--session",
@@ -327,6 +329,7 @@ fn a_planning_mode_session_killed_and_resumed_matches_the_uninterrupted_one() {
         }
         c
     };
+    let cmd = |dir: &Path, resume: bool| planning(dir, resume, SCENARIO, "0.5", "1");
     let dirs = kill_and_resume(&cmd, 6, 13, Duration::from_secs(3));
     let model = |d: &Path| -> serde_json::Value {
         let mut v: serde_json::Value =
@@ -335,17 +338,36 @@ fn a_planning_mode_session_killed_and_resumed_matches_the_uninterrupted_one() {
         v
     };
     assert_eq!(model(&dirs.0), model(&dirs.1));
-    // Resumed with other options, the division asks for other points: refused, clearly.
-    let out = cmd(&dirs.1, true)
-        .args(["--seed", "2"])
-        .stderr(std::process::Stdio::piped())
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !out.status.success() && err.contains("resume with the same rig, scenario, seed"),
-        "{err}"
-    );
+    // Resumed with other options (other points, or another world): refused, naming both, and
+    // nothing in the directory changes.
+    let before = std::fs::read(dirs.1.join("session.toml")).unwrap();
+    // The same world in another file: a scenario refers to its rig file relatively.
+    let root = dirs.2.path();
+    std::fs::create_dir_all(root.join("sim")).unwrap();
+    std::fs::create_dir_all(root.join("rigs")).unwrap();
+    std::fs::copy("rigs/rv-m2.toml", root.join("rigs/rv-m2.toml")).unwrap();
+    let other_world = root.join("sim/other-world.toml");
+    std::fs::copy(SCENARIO, &other_world).unwrap();
+    let other_world = other_world.to_str().unwrap();
+    for other in [
+        (SCENARIO, "0.5", "2"),
+        (SCENARIO, "0.4", "1"),
+        (other_world, "0.5", "1"),
+    ] {
+        let out = planning(&dirs.1, true, other.0, other.1, other.2)
+            .stderr(std::process::Stdio::piped())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success()
+                && err.contains("was measured with other options")
+                && err.contains("recorded:"),
+            "{other:?}: {err}"
+        );
+    }
+    assert_eq!(before, std::fs::read(dirs.1.join("session.toml")).unwrap());
+    compare(&dirs.0, &dirs.1);
 }
 
 /// Runs a session to the end, then again killed (SIGKILL) at random moments and resumed until

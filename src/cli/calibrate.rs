@@ -131,6 +131,57 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
+/// How `session.toml` notes a planning-mode session; the options that shaped it follow.
+const PLANNING_NOTE: &str =
+    "rigcal calibrate --session: planning-mode division, the session measures where it asks; options: ";
+
+/// The options that decide which points a planning-mode session measures and what it measures
+/// them on: a resume must be given the same.
+fn planning_options(a: &Args) -> String {
+    let file = |p: &std::path::Path| {
+        std::fs::canonicalize(p)
+            .unwrap_or_else(|_| p.to_path_buf())
+            .display()
+            .to_string()
+    };
+    format!(
+        "--rig {} --sim {} --division {:?} --accuracy-mm {} --max-regions {} --per-region {} --test-points {} --seed {} --unmeasurable-at {}",
+        file(&a.rig),
+        a.sim.as_deref().map_or("(none: the rig)".to_string(), file),
+        a.division,
+        a.accuracy_mm,
+        a.max_regions.map_or("(default)".to_string(), |n| n.to_string()),
+        a.per_region,
+        a.test_points,
+        a.seed,
+        a.unmeasurable_at.as_deref().unwrap_or("(none)"),
+    )
+}
+
+/// Refuses to resume the planning-mode session in `dir` with options other than its own: the
+/// division would ask for other points, or the session would mix measurements of two set-ups.
+fn refuse_other_options(a: &Args, dir: &std::path::Path) -> Result<()> {
+    let info = crate::recording::read_session_info(dir)
+        .with_context(|| format!("reading {}/session.toml", dir.display()))?;
+    let Some(recorded) = info
+        .and_then(|i| i.notes)
+        .and_then(|n| n.strip_prefix(PLANNING_NOTE).map(str::to_string))
+    else {
+        bail!(
+            "{}: its session.toml does not say which `rigcal calibrate --session` options made it; resume only sessions this command started",
+            dir.display()
+        );
+    };
+    let now = planning_options(a);
+    if recorded != now {
+        bail!(
+            "{} was measured with other options; resume it with the same ones\n  recorded: {recorded}\n  given:    {now}",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
 /// Planning mode through a measurement session in `dir`: every measurement the division asks
 /// for is made by the devices (emulated with `--sim`) and recorded there.
 fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Result<ModelFile> {
@@ -145,9 +196,12 @@ fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Resu
         rig: Some(a.rig.display().to_string()),
         scenario: a.sim.as_ref().map(|p| p.display().to_string()),
         seed: scenario.as_ref().map(|s| s.seed),
-        notes: Some("rigcal calibrate --session: planning-mode division, the session measures where it asks".into()),
+        notes: Some(format!("{PLANNING_NOTE}{}", planning_options(a))),
         ..Default::default()
     };
+    if a.resume {
+        refuse_other_options(a, dir)?;
+    }
     let mut session = Session::open(rig, devices, world, opts)?;
     // Read after opening: a resumed session has cut its recording back to the last finished
     // point.

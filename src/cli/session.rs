@@ -109,9 +109,9 @@ pub fn run(a: Args) -> Result<()> {
     // Both a fresh and a resumed run measure the plan as read back from the file.
     let points = read_plan(&plan_path, &rig)
         .with_context(|| format!("reading the session plan {}", plan_path.display()))?;
-    // The registration step measures its own poses first (none when reused or on a
-    // point-sensor rig).
-    let registration = if a.registration_from.is_none() {
+    // The registration step measures its own poses first (none when reused, on a point-sensor
+    // rig, or on a resume, which estimates the whole plan again).
+    let registration = if a.registration_from.is_none() && !a.resume {
         registration_points(&rig, a.registration_points, seed)
     } else {
         Vec::new()

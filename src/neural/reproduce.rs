@@ -782,7 +782,7 @@ pub fn table7(o: &ReproOptions) -> Result<Table, NeuralError> {
     }
     t.text = text;
     t.notes = vec![
-        "Table 6 prints δβ = −6°; we use −1.3° as in Table 4 (conventions §10), so E before calibration is about 7 mm, not 12.6 mm".into(),
+        "Table 6 prints δβ = −6°, an apparent typo; we use −1.3° as in Table 4 (the team's convention for this paper), so E before calibration is about 7 mm, not 12.6 mm".into(),
         format!("early stopping on 9 of the 36 training poses, patience {} epochs, best-validation weights restored", (o.epochs / 5).max(200)),
         "E_ac: against the pose of the robot with its constant errors only; E_r = ‖S_noisy − S_constant‖; FI = mean E_ac / mean E_r".into(),
         format!("HN by rule: the paper's rule for these tables, \"minimise the neurons while keeping good convergence on the corrupted training set\", read as the fewest neurons (1…{TABLE7_MAX_HIDDEN}) whose mean apparent error on the 36 training poses falls to their mean random error; the paper's counts were found on its robot, the rule finds ours"),

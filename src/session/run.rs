@@ -76,7 +76,9 @@ pub enum SessionError {
         dir: PathBuf,
     },
     /// A new session would overwrite a recording.
-    #[error("{dir} already holds a recording; resume it with --resume or choose another --out")]
+    #[error(
+        "{dir} already holds a recording; resume it with --resume or choose another directory"
+    )]
     AlreadyExists {
         /// The directory.
         dir: PathBuf,
