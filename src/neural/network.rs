@@ -504,24 +504,11 @@ impl Network {
             validation_rms = Some((2.0 * best.1 / (count * val_idx.len() as f64)).sqrt());
         }
         let final_loss = loss_over(self, &train_idx).unwrap_or(f64::NAN);
-        let mut out = self.outcome_through(epochs, history, residual_count, final_loss);
-        out.best_epoch = best_epoch;
-        out.validation_rms = validation_rms;
-        out
-    }
-
-    fn outcome_through(
-        &self,
-        epochs: usize,
-        history: Vec<f64>,
-        residuals: usize,
-        loss: f64,
-    ) -> TrainOutcome {
         TrainOutcome {
             epochs,
-            best_epoch: epochs,
-            train_rms: (2.0 * loss / residuals.max(1) as f64).sqrt(),
-            validation_rms: None,
+            best_epoch,
+            train_rms: (2.0 * final_loss / residual_count.max(1) as f64).sqrt(),
+            validation_rms,
             history,
         }
     }

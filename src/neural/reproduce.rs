@@ -15,7 +15,9 @@ use super::kinematics::Kinematics;
 use super::network::TrainConfig;
 use super::scara2::{Scara2, Scara2Errors, Scara2Random, Scara2Real, WORKING_AREA};
 use super::scara3::{self, Scara3Real};
-use super::schemes::{filtering_index, AngularSum, ErrorStats, NkModel, Sample, Scheme};
+use super::schemes::{
+    filtering_index, AngularSum, ErrorStats, ErrorVectors, NkModel, Sample, Scheme,
+};
 use super::stewart::{Stewart, StewartErrors};
 use super::NeuralError;
 use rand::{Rng, SeedableRng};
@@ -286,29 +288,29 @@ pub const TABLE5_LM_ITERATIONS: usize = 300;
 /// (mean validation error, mean training error, training seconds) of one fit.
 type Fit = (f64, f64, f64);
 
-/// A direct scheme of Table 5: 2 and 4 from [`super::schemes`], the others from
+/// A direct scheme (Tables 5, 17, 18 and Fig. 7): 2 and 4 from [`super::schemes`], the others from
 /// [`super::direct_schemes`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Table5Scheme {
+enum AnyDirect {
     Nk(Scheme),
     Other(OtherDirect),
 }
 
-impl Table5Scheme {
-    const ALL: [Table5Scheme; 7] = [
-        Table5Scheme::Other(OtherDirect::Scheme1),
-        Table5Scheme::Nk(Scheme::Direct2),
-        Table5Scheme::Other(OtherDirect::Scheme3),
-        Table5Scheme::Nk(Scheme::Direct4),
-        Table5Scheme::Other(OtherDirect::Scheme5),
-        Table5Scheme::Other(OtherDirect::Scheme6),
-        Table5Scheme::Other(OtherDirect::Scheme7),
+impl AnyDirect {
+    const ALL: [AnyDirect; 7] = [
+        AnyDirect::Other(OtherDirect::Scheme1),
+        AnyDirect::Nk(Scheme::Direct2),
+        AnyDirect::Other(OtherDirect::Scheme3),
+        AnyDirect::Nk(Scheme::Direct4),
+        AnyDirect::Other(OtherDirect::Scheme5),
+        AnyDirect::Other(OtherDirect::Scheme6),
+        AnyDirect::Other(OtherDirect::Scheme7),
     ];
 
     fn number(self) -> u8 {
         match self {
-            Table5Scheme::Nk(s) => s.number(),
-            Table5Scheme::Other(s) => s.number(),
+            AnyDirect::Nk(s) => s.number(),
+            AnyDirect::Other(s) => s.number(),
         }
     }
 
@@ -321,8 +323,8 @@ impl Table5Scheme {
         cfg: &TrainConfig,
     ) -> Result<SchemeRun, NeuralError> {
         match self {
-            Table5Scheme::Nk(scheme) => run_scheme(nominal, lea, val, scheme, sum, cfg),
-            Table5Scheme::Other(scheme) => {
+            AnyDirect::Nk(scheme) => run_scheme(nominal, lea, val, scheme, sum, cfg),
+            AnyDirect::Other(scheme) => {
                 let t0 = Instant::now();
                 let (model, outcome) = OtherDirectModel::train(nominal, lea, scheme, cfg)?;
                 let train_s = t0.elapsed().as_secs_f64();
@@ -373,7 +375,7 @@ fn for_each_case<T: Send>(
 /// Everything Table 5 computes for one case.
 struct Table5Case {
     before: (f64, f64),
-    /// [scheme of Table5Scheme::ALL][hidden index].
+    /// [scheme of AnyDirect::ALL][hidden index].
     fits: Vec<Vec<Fit>>,
     /// Schemes 2 and 4 by the paper's gradient descent.
     gradient_descent: [Fit; 2],
@@ -401,8 +403,8 @@ fn table5_case(o: &ReproOptions, case: u8, poses: usize) -> Result<Table5Case, N
     let val = scara2_samples(&real, None, 1244 / o.reduce.max(1), &mut rng);
     let b = norms(&nominal_errors(&nominal, &val));
     let seed = o.seed + case as u64;
-    let mut fits = Vec::with_capacity(Table5Scheme::ALL.len());
-    for scheme in Table5Scheme::ALL {
+    let mut fits = Vec::with_capacity(AnyDirect::ALL.len());
+    for scheme in AnyDirect::ALL {
         let per_hidden = TABLE5_HIDDEN
             .iter()
             .map(|&hidden| {
@@ -419,7 +421,7 @@ fn table5_case(o: &ReproOptions, case: u8, poses: usize) -> Result<Table5Case, N
     }
     let mut gradient_descent = [(0.0, 0.0, 0.0); 2];
     for (k, scheme) in [Scheme::Direct2, Scheme::Direct4].into_iter().enumerate() {
-        gradient_descent[k] = Table5Scheme::Nk(scheme).fit(
+        gradient_descent[k] = AnyDirect::Nk(scheme).fit(
             &nominal,
             &lea,
             &val,
@@ -451,7 +453,7 @@ pub fn table5(o: &ReproOptions) -> Result<Table, NeuralError> {
     };
     let paper_before = [[6.67, 10.2], [8.93, 17.0], [0.76, 1.26]];
     let poses = o.table5_poses.max(2);
-    let schemes = Table5Scheme::ALL;
+    let schemes = AnyDirect::ALL;
     let per_case = for_each_case(|case| table5_case(o, case, poses))?;
     // [scheme][hidden index][case] → (validation mean, training mean, seconds)
     let fits: Vec<Vec<[Fit; 3]>> = (0..schemes.len())
@@ -659,21 +661,20 @@ fn fewest_neurons_reaching_noise(
     train: &dyn Fn(usize) -> Result<SchemeRun, NeuralError>,
     er_train: f64,
 ) -> Result<(usize, SchemeRun), NeuralError> {
-    let mut closest: Option<(f64, usize, SchemeRun)> = None;
-    for hn in 1..=TABLE7_MAX_HIDDEN {
+    let first = train(1)?;
+    let mut closest = (norms(&first.lea_ap).mean, 1, first);
+    for hn in 2..=TABLE7_MAX_HIDDEN {
+        if closest.0 <= er_train {
+            break;
+        }
         let r = train(hn)?;
         let e = norms(&r.lea_ap).mean;
-        if e <= er_train {
-            return Ok((hn, r));
-        }
-        if closest.as_ref().is_none_or(|(best, _, _)| e < *best) {
-            closest = Some((e, hn, r));
+        // A count that reaches the noise is also closer than every count before it.
+        if e < closest.0 {
+            closest = (e, hn, r);
         }
     }
-    match closest {
-        Some((_, hn, r)) => Ok((hn, r)),
-        None => Err(NeuralError::TooFewSamples { got: 0 }),
-    }
+    Ok((closest.1, closest.2))
 }
 
 /// Tables 6–8: random errors on the 2-DOF SCARA (Table 6's constant errors with δβ = −1.3°):
@@ -1064,12 +1065,12 @@ pub fn table18(o: &ReproOptions, hidden: usize) -> Result<Table, NeuralError> {
             );
             for (scheme, paper, name) in [
                 (
-                    Table5Scheme::Nk(Scheme::Direct4),
+                    AnyDirect::Nk(Scheme::Direct4),
                     p18[k],
                     "scheme 4 (Table 18)",
                 ),
                 (
-                    Table5Scheme::Other(OtherDirect::Scheme3),
+                    AnyDirect::Other(OtherDirect::Scheme3),
                     p17[k],
                     "scheme 3 (Table 17)",
                 ),
@@ -1226,29 +1227,26 @@ fn fig7_case(o: &ReproOptions, case: u8, poses: usize) -> Result<Vec<Curve>, Neu
         epochs: TABLE5_LM_ITERATIONS,
         ..*o
     };
-    let mut curves = Vec::with_capacity(Table5Scheme::ALL.len());
-    for scheme in Table5Scheme::ALL {
+    let mut curves = Vec::with_capacity(AnyDirect::ALL.len());
+    for scheme in AnyDirect::ALL {
         let hidden = FIG7_HIDDEN[scheme.number() as usize - 1];
         let cfg = lm.cfg(hidden, false, o.seed + case as u64);
         let mut points = Vec::new();
-        let mut record = |epoch: usize, errors: Result<ErrorVectorsOnly, NeuralError>| {
+        // The validation error is worked out at the checkpoints only: it costs 1244 poses.
+        let mut record = |epoch: usize, errors: &dyn Fn() -> Result<ErrorVectors, NeuralError>| {
             if FIG7_CHECKPOINTS.contains(&epoch) {
-                points.push((epoch, errors.map_or(f64::NAN, |e| norms(&e).mean)));
+                points.push((epoch, errors().map_or(f64::NAN, |e| norms(&e.0).mean)));
             }
         };
         match scheme {
-            Table5Scheme::Nk(s) => {
+            AnyDirect::Nk(s) => {
                 NkModel::train_observed(&nominal, &lea, s, o.angular_sum, &cfg, &mut |e, m| {
-                    if FIG7_CHECKPOINTS.contains(&e) {
-                        record(e, m.errors(&nominal, &val).map(|v| v.0));
-                    }
+                    record(e, &|| m.errors(&nominal, &val))
                 })?;
             }
-            Table5Scheme::Other(s) => {
+            AnyDirect::Other(s) => {
                 OtherDirectModel::train_observed(&nominal, &lea, s, &cfg, &mut |e, m| {
-                    if FIG7_CHECKPOINTS.contains(&e) {
-                        record(e, m.errors(&nominal, &val).map(|v| v.0));
-                    }
+                    record(e, &|| m.errors(&nominal, &val))
                 })?;
             }
         }
@@ -1260,6 +1258,3 @@ fn fig7_case(o: &ReproOptions, case: u8, poses: usize) -> Result<Vec<Curve>, Neu
     }
     Ok(curves)
 }
-
-/// Apparent error vectors alone.
-type ErrorVectorsOnly = Vec<Vec<f64>>;
