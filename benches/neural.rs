@@ -3,8 +3,8 @@
 //! scenario's 2200 measurements. Run with `cargo bench --bench neural`.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rigcal::identification::{random_poses, Observation};
 use rigcal::kinematics::Robot;
 use rigcal::neural::network::Method;

@@ -2,8 +2,8 @@
 //! data set size) and compensation throughput. Run with `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rigcal::compensation::{compensate, CompensationOptions};
 use rigcal::identification::{
     analyse, candidate_order, fit, random_poses, FitOptions, Observation,

@@ -2,8 +2,8 @@
 //! on the ideal rig and on the table-and-panel rig with its physics.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rigcal::identification::random_poses;
 use rigcal::kinematics::Robot;
 use rigcal::world::Scenario;

@@ -7,8 +7,8 @@
 //! 3·(75 − 1)… ≥ 60 degrees of freedom of pure error). `rates` (ignored) runs many seeds and
 //! prints the naming and false-claim rates. Units: mm and degrees.
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::diagnosis::{diagnose, Options, Report};
 use rigcal::identification::random_poses;
 use rigcal::kinematics::Robot;
@@ -55,7 +55,7 @@ fn record(sc: &Scenario, n: usize, seed: u64) -> Recording {
             is_ref.push(false);
         }
     }
-    let _ = rng.gen::<u8>();
+    let _ = rng.random::<u8>();
     let mut rec = sc.world().record(&poses, 1);
     for (row, r) in rec.rows.iter_mut().zip(is_ref) {
         row.region = Some(if r { "ref".into() } else { "w".into() });

@@ -11,8 +11,8 @@
 mod common;
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::identification::{analyse, candidate_order, random_poses};
 use rigcal::kinematics::{ErrorParams, Robot, TransformId};
 use rigcal::recording::Recording;
@@ -61,10 +61,10 @@ fn world_with(rig: &Rig, seed: u64, effects: Vec<Arc<dyn Effect>>, rotate: bool)
         } else {
             0.5
         };
-        truth.set(i, if rng.gen_bool(0.5) { size } else { -size });
+        truth.set(i, if rng.random_bool(0.5) { size } else { -size });
     }
     let angle = if rotate {
-        rng.gen_range(0.5..std::f64::consts::PI)
+        rng.random_range(0.5..std::f64::consts::PI)
     } else {
         0.0
     };

@@ -3,8 +3,8 @@
 //! the FCMAC smooths the region-wise CEPs.
 
 use nalgebra::Vector3;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::compensation::{compensate, CompensationOptions};
 use rigcal::division::{divide, DivisionOptions, Measurer, Mode, RegionModel};
 use rigcal::identification::{analyse, candidate_order, random_poses, Observation};
@@ -26,8 +26,8 @@ impl TrigArm {
     fn new(rig: Rig, geometric: ErrorParams, size_deg: f64, seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let s = size_deg.to_radians();
-        let a = std::array::from_fn(|_| std::array::from_fn(|_| rng.gen_range(-s..s)));
-        let b = std::array::from_fn(|_| std::array::from_fn(|_| rng.gen_range(-s..s)));
+        let a = std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-s..s)));
+        let b = std::array::from_fn(|_| std::array::from_fn(|_| rng.random_range(-s..s)));
         Self {
             rig,
             geometric,

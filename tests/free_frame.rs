@@ -4,8 +4,8 @@
 //! predictions.
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rigcal::identification::{analyse, candidate_order, random_poses};
 use rigcal::kinematics::Robot;
 use rigcal::rig::Rig;

@@ -3,8 +3,8 @@
 //! and the truth of a simulated arm.
 
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use rigcal::compensation::{compensate, CompensationError, CompensationOptions};
 use rigcal::identification::{
     analyse, candidate_order, fit, random_poses, register, FitOptions, Observation,

@@ -3,8 +3,8 @@
 
 use approx::assert_relative_eq;
 use nalgebra::Vector3;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::kinematics::{
     solve_position_ik, ErrorParams, IkError, IkOptions, Robot, SphericalFrame,
 };
@@ -39,9 +39,9 @@ fn forward_kinematics_matches_a_hand_derived_closed_form() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     for _ in 0..200 {
         let q: [f64; 3] = [
-            rng.gen_range(-2.6..2.6),
-            rng.gen_range(-0.5..1.7),
-            rng.gen_range(-2.0..0.0),
+            rng.random_range(-2.6..2.6),
+            rng.random_range(-0.5..1.7),
+            rng.random_range(-2.0..0.0),
         ];
         let rho = 120.0 + 250.0 * q[1].cos() + 435.0 * (q[1] + q[2]).cos();
         let z = 400.0 + 250.0 * q[1].sin() + 435.0 * (q[1] + q[2]).sin();
@@ -53,7 +53,7 @@ fn forward_kinematics_matches_a_hand_derived_closed_form() {
 
 fn random_params(n: usize, rng: &mut ChaCha8Rng) -> ErrorParams {
     let mut e = ErrorParams::zeros(&rigcal::kinematics::ParamLayout::new(vec![], 0));
-    *e.as_vector_mut() = nalgebra::DVector::from_fn(n, |_, _| rng.gen_range(-0.01..0.01));
+    *e.as_vector_mut() = nalgebra::DVector::from_fn(n, |_, _| rng.random_range(-0.01..0.01));
     e
 }
 
@@ -68,7 +68,7 @@ fn parameter_jacobian_matches_central_differences() {
             let q: Vec<f64> = chain
                 .joints()
                 .iter()
-                .map(|j| rng.gen_range(j.min..j.max))
+                .map(|j| rng.random_range(j.min..j.max))
                 .collect();
             let e = random_params(n, &mut rng);
             let (p, m) = chain.position_and_param_jacobian(&q, &e);
@@ -105,7 +105,7 @@ fn joint_jacobian_matches_central_differences() {
         let q: Vec<f64> = chain
             .joints()
             .iter()
-            .map(|j| rng.gen_range(j.min..j.max))
+            .map(|j| rng.random_range(j.min..j.max))
             .collect();
         let jq = chain.joint_jacobian(&q, &e);
         for k in 0..q.len() {
@@ -133,9 +133,9 @@ fn spherical_coordinates_follow_the_conventions() {
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     for _ in 0..100 {
         let q: [f64; 5] = [
-            rng.gen_range(-2.6..2.6),
-            rng.gen_range(-0.5..1.7),
-            rng.gen_range(-2.0..0.0),
+            rng.random_range(-2.6..2.6),
+            rng.random_range(-0.5..1.7),
+            rng.random_range(-2.0..0.0),
             0.0,
             0.0,
         ];
@@ -158,9 +158,9 @@ fn inverse_kinematics_recovers_reachable_targets_and_refuses_others() {
     let opts = IkOptions::default();
     for _ in 0..100 {
         let q: Vec<f64> = vec![
-            rng.gen_range(-2.5..2.5),
-            rng.gen_range(-0.4..1.6),
-            rng.gen_range(-2.0..-0.1),
+            rng.random_range(-2.5..2.5),
+            rng.random_range(-0.4..1.6),
+            rng.random_range(-2.0..-0.1),
             0.0,
             0.0,
         ];

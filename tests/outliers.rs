@@ -4,8 +4,8 @@
 //! Units: mm.
 
 use nalgebra::Vector3;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::identification::{analyse, candidate_order, random_poses};
 use rigcal::kinematics::Robot;
 use rigcal::recording::Recording;
@@ -70,9 +70,9 @@ fn planted_gross_errors_are_named_removed_and_the_fit_matches_the_clean_fit() {
     let mut rng = ChaCha8Rng::seed_from_u64(99);
     for &(k, size) in &planted {
         let dir3 = Vector3::new(
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
         )
         .normalize();
         if let Some(p) = rec.rows[k].position.as_mut() {

@@ -1,7 +1,7 @@
 //! Literal-byte, error and property tests for every codec in `rigcal::protocols`.
 
 use proptest::prelude::*;
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 
 use rigcal::protocols::can::{CanFrame, CanFrameError, CanId};
 use rigcal::protocols::canopen::{
@@ -294,7 +294,7 @@ fn quantise_never_accumulates_over_1000_random_moves() {
         let mut sum_increments: i64 = 0;
         let mut target = 0.0f64;
         for _ in 0..1000 {
-            target += rng.gen_range(-7.3..7.3);
+            target += rng.random_range(-7.3..7.3);
             let step = quantise_increment(target, commanded, res).unwrap();
             // The wire value is exactly the integer increment.
             assert_eq!(step.increment.to_counts(res), Some(step.increment_counts));

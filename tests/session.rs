@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use proptest::prelude::*;
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use rigcal::devices::contact::{approach_speed, measure_contact};
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::{
@@ -387,7 +387,7 @@ fn kill_and_resume(
     // registration, points), whatever the machine's speed.
     let whole_us = (t0.elapsed().as_micros() as u64).clamp(2_000, longest_run.as_micros() as u64);
     let b = base.path().join("b");
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(seed);
     let mut kills = 0;
     let mut runs = 0;
     let started = std::time::Instant::now();
@@ -399,7 +399,7 @@ fn kill_and_resume(
             let _ = std::fs::remove_dir_all(&b);
         }
         let mut child = cmd(&b, !fresh).spawn().unwrap();
-        let delay = Duration::from_micros(rng.gen_range(whole_us / 10..whole_us));
+        let delay = Duration::from_micros(rng.random_range(whole_us / 10..whole_us));
         std::thread::sleep(delay);
         match child.try_wait().unwrap() {
             Some(st) => {

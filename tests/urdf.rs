@@ -4,8 +4,8 @@
 //! origins and axes.
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::kinematics::{ErrorParams, Robot};
 use rigcal::rig::Rig;
 use std::process::Command;
@@ -44,7 +44,7 @@ fn from_urdf_matches_the_urdf_forward_kinematics() {
             .chain
             .joints()
             .iter()
-            .map(|j| rng.gen_range(j.min..=j.max))
+            .map(|j| rng.random_range(j.min..=j.max))
             .collect();
         let p = rig.chain.position(&q, &e);
         let expect = urdf_fk(&q);
@@ -143,9 +143,9 @@ fn an_unknown_tracker_frame_and_marker_are_identified_with_the_kinematics() {
             } else {
                 0.5
             };
-            truth.set(i, if rng.gen_bool(0.5) { size } else { -size });
+            truth.set(i, if rng.random_bool(0.5) { size } else { -size });
         }
-        let angle = rng.gen_range(0.5..3.1);
+        let angle = rng.random_range(0.5..3.1);
         let frame = Isometry3::from_parts(
             Translation3::new(1500.0, -300.0, 800.0),
             UnitQuaternion::from_axis_angle(

@@ -136,6 +136,11 @@ fn a_finer_demand_divides_and_the_fcmac_is_smoother_than_regions_and_cmac() {
             "{path}: regions should beat conventional"
         );
         for k in 0..4 {
+            if r.3[k] < 1e-9 {
+                // The path crosses no region boundary that changes this CEP.
+                assert!(f.3[k] < 1e-3, "{path}: CEP {k} FCMAC jump {}", f.3[k]);
+                continue;
+            }
             assert!(
                 f.3[k] < 0.5 * r.3[k],
                 "{path}: CEP {k} FCMAC jump {} vs regions {}",

@@ -4,8 +4,8 @@
 
 use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use rigcal::kinematics::{ErrorParams, Robot};
 use rigcal::recording::Recording;
 use rigcal::rig::{Instrument, Rig, TablePanel};
@@ -234,7 +234,7 @@ fn panel_quantisation_error_is_one_count_over_root_12() {
     let mut rng = ChaCha8Rng::seed_from_u64(3);
     let (mut su, mut sv, n) = (0.0, 0.0, 50_000);
     for _ in 0..n {
-        let uv = [rng.gen_range(-66.0..66.0), rng.gen_range(-39.5..39.5)];
+        let uv = [rng.random_range(-66.0..66.0), rng.random_range(-39.5..39.5)];
         let Touch::Contact { uv_mm, .. } = panel_report(&tp, uv, true) else {
             panic!("inside the panel")
         };

@@ -279,7 +279,7 @@ pub(crate) fn calibrate(
         crate::kinematics::Robot::joints(chain),
         rig.held(),
         100,
-        &mut rand_chacha::ChaCha8Rng::seed_from_u64(a.seed),
+        &mut rand::rngs::ChaCha8Rng::seed_from_u64(a.seed),
     );
     let ident = analyse(chain, &design, &candidate_order(rig));
     let max_regions = a.max_regions.unwrap_or(match a.division {
@@ -568,7 +568,7 @@ fn run_neural(rig: &Rig, a: &Args) -> Result<()> {
                 crate::kinematics::Robot::joints(&rig.chain),
                 rig.held(),
                 a.measurements,
-                &mut rand_chacha::ChaCha8Rng::seed_from_u64(a.seed),
+                &mut rand::rngs::ChaCha8Rng::seed_from_u64(a.seed),
             );
             let rec = sc.world().record(&poses, 0);
             (

@@ -122,7 +122,7 @@ pub fn run(a: Args) -> Result<()> {
             &joints,
             rig.held(),
             n,
-            &mut rand_chacha::ChaCha8Rng::seed_from_u64(seed),
+            &mut rand::rngs::ChaCha8Rng::seed_from_u64(seed),
         );
         Ok(super::observations(&w.record(&poses, seed << 32)))
     };
@@ -158,7 +158,7 @@ pub fn run(a: Args) -> Result<()> {
         &joints,
         rig.held(),
         100,
-        &mut rand_chacha::ChaCha8Rng::seed_from_u64(a.seed),
+        &mut rand::rngs::ChaCha8Rng::seed_from_u64(a.seed),
     );
     let ident = analyse(&rig.chain, &design, &candidate_order(&rig));
     let conv = fit(

@@ -7,7 +7,7 @@ use crate::report::{
 };
 use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
-use rand::{Rng, SeedableRng};
+use rand::{RngExt, SeedableRng};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal evaluate`.
@@ -144,17 +144,17 @@ fn build_paths(rig: &crate::rig::Rig, a: &Args) -> Result<Vec<PathSpec>> {
                 a.points,
             )?),
             "random" => {
-                let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(a.seed);
+                let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(a.seed);
                 let joints = crate::kinematics::Robot::joints(&rig.chain);
                 let moving = rig.moving_joints();
                 for k in 0..a.random_paths {
-                    let draw = |rng: &mut rand_chacha::ChaCha8Rng| -> Vec<f64> {
+                    let draw = |rng: &mut rand::rngs::ChaCha8Rng| -> Vec<f64> {
                         moving
                             .iter()
                             .map(|&j| {
                                 let s = &joints[j];
                                 let m = 0.1 * (s.max - s.min);
-                                s.kind.to_file_units(rng.gen_range(s.min + m..s.max - m))
+                                s.kind.to_file_units(rng.random_range(s.min + m..s.max - m))
                             })
                             .collect()
                     };

@@ -4,8 +4,8 @@ use crate::identification::{analyse, candidate_order, identifiability, random_po
 use crate::kinematics::Robot;
 use crate::rig::Rig;
 use anyhow::Result;
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal observability`.

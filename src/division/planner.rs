@@ -21,9 +21,9 @@ use crate::identification::{fit, FitOptions, FitResult, Observation, Prior};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::rig::Rig;
 use nalgebra::DMatrix;
+use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 
 /// Something that measures the arm: the simulated world or the rig.
 pub trait Measurer {
@@ -352,8 +352,8 @@ impl Ctx<'_, '_> {
         let mut rest: Vec<usize> = (n..pool.len()).collect();
         let mut best = kappa_of(&chosen);
         for _ in 0..self.opts.exchange_steps {
-            let i = self.rng.gen_range(0..chosen.len());
-            let j = self.rng.gen_range(0..rest.len());
+            let i = self.rng.random_range(0..chosen.len());
+            let j = self.rng.random_range(0..rest.len());
             std::mem::swap(&mut chosen[i], &mut rest[j]);
             let k = kappa_of(&chosen);
             if k < best {

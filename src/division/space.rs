@@ -5,7 +5,7 @@ use crate::kinematics::{
     solve_position_ik, ErrorParams, IkOptions, Robot, SerialChain, Spherical, SphericalFrame,
 };
 use crate::rig::Rig;
-use rand::Rng;
+use rand::RngExt;
 use serde::{Deserialize, Serialize};
 
 /// Which space the workspace is divided in.
@@ -165,7 +165,7 @@ impl DivisionSpace {
     }
 
     /// A pose in box `b` drawn at random, measurable on the rig, or None after `tries` attempts.
-    pub fn sample<R: Rng + ?Sized>(
+    pub fn sample<R: RngExt + ?Sized>(
         &self,
         b: &Bounds,
         rng: &mut R,
@@ -174,13 +174,13 @@ impl DivisionSpace {
         let joints = self.rig.chain.joints();
         let held = self.rig.held();
         for _ in 0..tries {
-            let x: [f64; 3] = std::array::from_fn(|k| rng.gen_range(b.lo[k]..=b.hi[k]));
+            let x: [f64; 3] = std::array::from_fn(|k| rng.random_range(b.lo[k]..=b.hi[k]));
             let q = match self.space {
                 Space::Joint => {
                     let mut q: Vec<f64> = joints
                         .iter()
                         .enumerate()
-                        .map(|(j, s)| held[j].unwrap_or_else(|| rng.gen_range(s.min..=s.max)))
+                        .map(|(j, s)| held[j].unwrap_or_else(|| rng.random_range(s.min..=s.max)))
                         .collect();
                     for (k, &m) in self.major.iter().enumerate() {
                         q[m] = x[k];
@@ -213,7 +213,7 @@ impl DivisionSpace {
 
 fn sampled_spherical_bounds(rig: &Rig, sf: &SphericalFrame) -> Bounds {
     use rand::SeedableRng;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x5eed);
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(0x5eed);
     let poses = crate::identification::random_poses(rig.chain.joints(), rig.held(), 4000, &mut rng);
     let world = rig.chain.with_frame(nalgebra::Isometry3::identity());
     let e = ErrorParams::zeros(world.layout());

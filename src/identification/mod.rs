@@ -23,10 +23,10 @@ pub use identifiability::{analyse, candidate_order, Identifiability};
 pub use registration::{register, Registration};
 
 use crate::kinematics::{JointKind, JointSpec};
-use rand::Rng;
+use rand::RngExt;
 
 /// `n` joint vectors drawn uniformly within the limits, held joints at their values.
-pub fn random_poses<R: Rng + ?Sized>(
+pub fn random_poses<R: RngExt + ?Sized>(
     joints: &[JointSpec],
     held: &[Option<f64>],
     n: usize,
@@ -39,7 +39,7 @@ pub fn random_poses<R: Rng + ?Sized>(
                 .enumerate()
                 .map(|(j, s)| match held.get(j).copied().flatten() {
                     Some(v) => v,
-                    None => rng.gen_range(s.min..=s.max),
+                    None => rng.random_range(s.min..=s.max),
                 })
                 .collect()
         })

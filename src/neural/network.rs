@@ -15,8 +15,8 @@
 //! hundred iterations (see `rigcal reproduce seed001`, which reports both).
 
 use nalgebra::{DMatrix, DVector};
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
 
 /// One hidden layer of sigmoid units, linear outputs.
@@ -121,9 +121,9 @@ impl Network {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         let r1 = 1.0 / (inputs.max(1) as f64).sqrt();
         let r2 = 1.0 / (hidden.max(1) as f64).sqrt();
-        let w1 = DMatrix::from_fn(hidden, inputs, |_, _| rng.gen_range(-r1..r1));
-        let b1 = DVector::from_fn(hidden, |_, _| rng.gen_range(-r1..r1));
-        let w2 = DMatrix::from_fn(outputs, hidden, |_, _| rng.gen_range(-r2..r2));
+        let w1 = DMatrix::from_fn(hidden, inputs, |_, _| rng.random_range(-r1..r1));
+        let b1 = DVector::from_fn(hidden, |_, _| rng.random_range(-r1..r1));
+        let w2 = DMatrix::from_fn(outputs, hidden, |_, _| rng.random_range(-r2..r2));
         let b2 = DVector::zeros(outputs);
         Self { w1, b1, w2, b2 }
     }
@@ -527,7 +527,7 @@ pub fn validation_split(n: usize, cfg: &TrainConfig) -> (Vec<usize>, Vec<usize>)
     if n_val > 0 {
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_0001);
         for i in (1..n).rev() {
-            let j = rng.gen_range(0..=i);
+            let j = rng.random_range(0..=i);
             order.swap(i, j);
         }
     }

@@ -27,7 +27,7 @@
 //! ±amplitude for every pose.
 
 use super::kinematics::{Kinematics, KinematicsError};
-use rand::Rng;
+use rand::RngExt;
 
 /// Link lengths of Table 4 (mm).
 pub const LINK_MM: f64 = 330.0;
@@ -278,8 +278,14 @@ impl Scara2Real {
     }
 
     /// A draw of random errors with amplitudes `amp`.
-    pub fn draw<R: Rng + ?Sized>(amp: &Scara2Random, rng: &mut R) -> [f64; 6] {
-        let mut u = |a: f64| if a > 0.0 { rng.gen_range(-a..a) } else { 0.0 };
+    pub fn draw<R: RngExt + ?Sized>(amp: &Scara2Random, rng: &mut R) -> [f64; 6] {
+        let mut u = |a: f64| {
+            if a > 0.0 {
+                rng.random_range(-a..a)
+            } else {
+                0.0
+            }
+        };
         [
             u(amp.dl1),
             u(amp.dl2),

@@ -20,7 +20,7 @@
 use super::kinematics::SerialKinematics;
 use crate::rig::Rig;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use rand::Rng;
+use rand::RngExt;
 
 /// The rig file of the nominal robot.
 pub const RIG_TOML: &str = include_str!("../../rigs/scara3.toml");
@@ -143,12 +143,12 @@ impl Scara3Real {
     }
 
     /// A uniform random draw within ± `scale` × the amplitudes of Tables 13–15.
-    pub fn draw<R: Rng + ?Sized>(scale: f64, rng: &mut R) -> [f64; N_ERRORS] {
+    pub fn draw<R: RngExt + ?Sized>(scale: f64, rng: &mut R) -> [f64; N_ERRORS] {
         let a = random_amplitudes();
         std::array::from_fn(|k| {
             let v = a[k] * scale;
             if v > 0.0 {
-                rng.gen_range(-v..v)
+                rng.random_range(-v..v)
             } else {
                 0.0
             }
@@ -158,10 +158,10 @@ impl Scara3Real {
 
 /// Joint values of a random pose uniform in the torus workspace (R 130..530 mm, z 0..300 mm),
 /// elbow q2 > 0, by the closed-form nominal inverse kinematics.
-pub fn random_joints<R: Rng + ?Sized>(rng: &mut R) -> Vec<f64> {
-    let r = rng.gen_range(130.0f64 * 130.0..530.0 * 530.0).sqrt();
-    let phi = rng.gen_range(-std::f64::consts::PI..std::f64::consts::PI);
-    let z = rng.gen_range(0.0..300.0);
+pub fn random_joints<R: RngExt + ?Sized>(rng: &mut R) -> Vec<f64> {
+    let r = rng.random_range(130.0f64 * 130.0..530.0 * 530.0).sqrt();
+    let phi = rng.random_range(-std::f64::consts::PI..std::f64::consts::PI);
+    let z = rng.random_range(0.0..300.0);
     let c = ((r * r - 2.0 * 330.0 * 330.0) / (2.0 * 330.0 * 330.0)).clamp(-1.0, 1.0);
     let q2 = c.acos();
     let q1 = phi - (330.0 * q2.sin()).atan2(330.0 + 330.0 * q2.cos());

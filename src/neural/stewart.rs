@@ -15,7 +15,7 @@
 
 use super::kinematics::{Kinematics, KinematicsError};
 use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
-use rand::Rng;
+use rand::RngExt;
 
 /// Gripper offset from the platform (mm).
 pub const Z_PG_MM: f64 = 200.0;
@@ -95,15 +95,15 @@ impl Stewart {
     }
 
     /// A random pose of the workspace (see the module docs).
-    pub fn random_pose<R: Rng + ?Sized>(rng: &mut R) -> Vec<f64> {
+    pub fn random_pose<R: RngExt + ?Sized>(rng: &mut R) -> Vec<f64> {
         let a = 5f64.to_radians();
         vec![
-            rng.gen_range(-100.0..100.0),
-            rng.gen_range(-100.0..100.0),
-            rng.gen_range(1000.0..1200.0),
-            rng.gen_range(-a..a),
-            rng.gen_range(-a..a),
-            rng.gen_range(-a..a),
+            rng.random_range(-100.0..100.0),
+            rng.random_range(-100.0..100.0),
+            rng.random_range(1000.0..1200.0),
+            rng.random_range(-a..a),
+            rng.random_range(-a..a),
+            rng.random_range(-a..a),
         ]
     }
 
@@ -261,11 +261,11 @@ impl StewartErrors {
     }
 
     /// A uniform draw within ± the amplitudes.
-    pub fn draw<R: Rng + ?Sized>(&self, rng: &mut R) -> [f64; 48] {
+    pub fn draw<R: RngExt + ?Sized>(&self, rng: &mut R) -> [f64; 48] {
         let a = self.amplitudes();
         std::array::from_fn(|k| {
             if a[k] > 0.0 {
-                rng.gen_range(-a[k]..a[k])
+                rng.random_range(-a[k]..a[k])
             } else {
                 0.0
             }

@@ -19,9 +19,9 @@
 
 use std::path::{Path, PathBuf};
 
+use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 use crate::devices::emulators::Profile;
 use crate::division::{Bounds, DivisionSpace, Space};

@@ -215,7 +215,7 @@ impl Progress {
         match self {
             Progress::Quiet => {}
             Progress::Lines { every, started } => {
-                if done % every == 0 || done == total {
+                if done.is_multiple_of(*every) || done == total {
                     let el = started.elapsed().as_secs_f64();
                     eprintln!(
                         "session: {done}/{total} points, rig time {:.0} s, {:.1} points/s",

@@ -9,8 +9,8 @@ use super::scenario::ScenarioError;
 use crate::identification::{analyse, candidate_order, random_poses, Identifiability};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::rig::Rig;
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -61,7 +61,7 @@ pub fn paper_geometric_errors(
         } else {
             0.4
         };
-        let sign = if rng.gen_bool(0.5) { 1.0 } else { -1.0 };
+        let sign = if rng.random_bool(0.5) { 1.0 } else { -1.0 };
         e.set(i, sign * size);
     }
     e
@@ -108,13 +108,13 @@ pub(crate) fn build(
             };
             let v = match r.distribution {
                 Distribution::Signs => {
-                    if rng.gen_bool(0.5) {
+                    if rng.random_bool(0.5) {
                         size
                     } else {
                         -size
                     }
                 }
-                Distribution::Uniform => size * rng.gen_range(-1.0..=1.0),
+                Distribution::Uniform => size * rng.random_range(-1.0..=1.0),
             };
             e.set(i, v);
         }

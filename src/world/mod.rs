@@ -50,8 +50,8 @@ use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::recording::{Measurement, Recording, Status};
 use crate::rig::Instrument;
 use nalgebra::{Isometry3, Vector3};
+use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 

@@ -14,7 +14,7 @@ use super::paper::{error_split, fig6_path};
 use super::scenario::ScenarioError;
 use crate::kinematics::{ErrorParams, JointKind, Robot, SerialChain};
 use nalgebra::Matrix3;
-use rand::Rng;
+use rand::RngExt;
 use serde::Deserialize;
 use std::sync::Arc;
 
@@ -140,7 +140,7 @@ pub fn parse(ctx: &ParseCtx<'_>, t: &toml::Table) -> Result<Arc<dyn Effect>, Sce
         (false, Some(r)) => {
             let r = ctx.positive(".random_deg", r)?.to_radians();
             let mut rng = super::setup_rng(ctx.seed, ctx.index);
-            let mut draw = || Matrix3::from_fn(|_, _| rng.gen_range(-r..=r));
+            let mut draw = || Matrix3::from_fn(|_, _| rng.random_range(-r..=r));
             let a = draw();
             let b = draw();
             TrigJointErrors { a, b }
