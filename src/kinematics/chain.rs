@@ -3,7 +3,8 @@
 //! [`crate::kinematics`] for the convention.
 
 use super::params::{ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
-use super::Robot;
+use super::pose::{newton_inverse, KinematicsError, NEWTON_ITERATIONS, NEWTON_TOLERANCE};
+use super::{solve_position_ik, IkOptions, Robot};
 use nalgebra::{DMatrix, Isometry3, Translation3, UnitQuaternion, Vector3};
 
 /// Revolute or prismatic.
@@ -387,6 +388,33 @@ impl SerialChain {
 impl Robot for SerialChain {
     fn joints(&self) -> &[JointSpec] {
         &self.joints
+    }
+
+    /// A local Newton step from the guess first (it keeps the branch), then the global search
+    /// of [`solve_position_ik`] seeded with the guess, nominal chain, no joint held.
+    fn inverse(&self, s: &[f64], guess: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+        if let Ok(q) = newton_inverse(self, s, guess, NEWTON_TOLERANCE, NEWTON_ITERATIONS) {
+            return Ok(q);
+        }
+        let target = Vector3::new(s[0], s[1], s[2]);
+        let held = vec![None; self.joints.len()];
+        solve_position_ik(
+            self,
+            &ErrorParams::zeros(&self.layout),
+            &target,
+            &held,
+            Some(guess),
+            &IkOptions::default(),
+        )
+        .map_err(|e| KinematicsError::Unreachable {
+            pose: s.to_vec(),
+            reason: e.to_string(),
+        })
+    }
+
+    /// The nominal joint Jacobian (analytic).
+    fn pose_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>, KinematicsError> {
+        Ok(self.joint_jacobian(q, &ErrorParams::zeros(&self.layout)))
     }
 
     fn layout(&self) -> &ParamLayout {
