@@ -8,10 +8,10 @@ use rand::SeedableRng;
 use rigcal::identification::{random_poses, Observation};
 use rigcal::kinematics::Robot;
 use rigcal::neural::network::Method;
-use rigcal::neural::reproduce::{scara2_spread, TABLE5_LM_ITERATIONS};
 use rigcal::neural::rig_model::train_on_rig;
-use rigcal::neural::scara2::{Scara2, Scara2Errors, Scara2Real};
 use rigcal::neural::{AngularSum, NkModel, Scheme, TrainConfig};
+use rigcal::reproduce::robots::{Scara2, Scara2Errors, Scara2Real};
+use rigcal::reproduce::seed001::{scara2_spread, TABLE5_LM_ITERATIONS};
 use std::path::Path;
 
 fn table5_network(c: &mut Criterion) {

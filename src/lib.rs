@@ -6,16 +6,17 @@
 //! | module | holds |
 //! |---|---|
 //! | [`rig`] | rig files: chain, limits, calibration settings, instrument |
-//! | [`kinematics`] | the [`kinematics::Robot`] trait, serial chains, error parameters, IK |
+//! | [`kinematics`] | the [`kinematics::Robot`] trait (pose map and measured point), serial chains, error parameters, IK |
 //! | [`recording`] | measurement recordings and their sidecar |
 //! | [`identification`] | identifiability, least squares, registration |
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
 //! | [`model`] | the versioned model file |
-//! | [`neural`] | neuro-kinematic calibration (seed 001): network, schemes, the paper's robots |
+//! | [`neural`] | neuro-kinematic calibration (seed 001): the network, schemes 2 and 4, a network as a rig's error model |
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
 //! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
 //! | [`devices`] | arm, table and panel drivers, their emulators, safety wrappers, the factory |
+//! | [`reproduce`] | not the calibration tool: the papers' robots, their other schemes and tables, beside the papers' numbers (`rigcal reproduce`) |
 pub mod cli;
 pub mod compensation;
 pub mod devices;
@@ -29,6 +30,7 @@ pub mod neural;
 pub mod protocols;
 pub mod recording;
 pub mod report;
+pub mod reproduce;
 pub mod rig;
 pub mod session;
 pub mod transports;

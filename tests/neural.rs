@@ -1,19 +1,18 @@
-//! Neuro-kinematic calibration (seed 001): the network, the schemes, the paper's robots and
-//! reduced reproductions. Sizes are reduced to keep the file to a few seconds in release.
+//! Neuro-kinematic calibration (seed 001): the network, the schemes, the paper's robots as
+//! [`Robot`]s and reduced reproductions; the reproduction tree stays out of the product's
+//! modules. Sizes are reduced to keep the file to a few seconds in release.
 
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::kinematics::Robot;
+use rigcal::kinematics::{HeldChain, Robot};
 use rigcal::neural::network::{validation_split, Method};
-use rigcal::neural::reproduce::{table5, table7, ReproOptions};
-use rigcal::neural::scara2::Scara2;
-use rigcal::neural::scara3::{self, Scara3Real};
-use rigcal::neural::schemes::{filtering_index, ErrorStats};
-use rigcal::neural::stewart::{home_pose, Stewart, StewartErrors};
-use rigcal::neural::{
-    AngularSum, Kinematics, Network, NkModel, Sample, Scaler, Scheme, TrainConfig,
-};
+use rigcal::neural::{AngularSum, Network, NkModel, Sample, Scaler, Scheme, TrainConfig};
+use rigcal::reproduce::evaluation::{filtering_index, ErrorStats, PoseErrors};
+use rigcal::reproduce::robots::scara3::{self, Scara3Real};
+use rigcal::reproduce::robots::stewart::home_pose;
+use rigcal::reproduce::robots::{Scara2, Stewart, StewartErrors};
+use rigcal::reproduce::seed001::{table5, table7, ReproOptions, Table};
 
 fn data(n: usize, inputs: usize, outputs: usize, seed: u64) -> (DMatrix<f64>, DMatrix<f64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -230,7 +229,7 @@ fn table7_with_the_papers_rule_for_neurons_is_within_its_order_and_filters_noise
     }
 }
 
-fn value(t: &rigcal::neural::reproduce::Table, label: &str) -> (String, f64, f64) {
+fn value(t: &Table, label: &str) -> (String, f64, f64) {
     t.values
         .iter()
         .find(|(l, _, _)| l == label)
@@ -398,7 +397,7 @@ fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
 #[test]
 fn scara2_rig_file_is_the_closed_form_nominal() {
     let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/scara2.toml")).expect("rig");
-    let kin = rigcal::neural::SerialKinematics::new(rig.chain.clone(), rig.held());
+    let kin = HeldChain::new(rig.chain.clone(), rig.held());
     let closed = Scara2::default();
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     for _ in 0..20 {

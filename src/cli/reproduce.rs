@@ -1,7 +1,9 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
 use crate::neural::network::Method;
-use crate::neural::reproduce::{fig7, table11, table18, table5, table7, Fig7, ReproOptions, Table};
+use crate::reproduce::seed001::{
+    fig7, table11, table18, table5, table7, Fig7, ReproOptions, Table, TABLE5_POSES,
+};
 use crate::report::{plot_log_curves, CurvePanel};
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
@@ -29,7 +31,7 @@ pub struct Args {
     pub lm: bool,
     /// Training poses of Table 5 (the paper: 46, evenly spread); η of its gradient-descent rows
     /// is rescaled to keep the mean-gradient step.
-    #[arg(long, default_value_t = crate::neural::reproduce::TABLE5_POSES)]
+    #[arg(long, default_value_t = TABLE5_POSES)]
     pub poses: usize,
     /// Hidden neurons for the Stewart platform and the 3-DOF SCARA (the paper does not say).
     #[arg(long, default_value_t = 10)]

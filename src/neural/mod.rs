@@ -1,34 +1,27 @@
 //! Neuro-kinematic calibration (seed 001, Legnani & Tiboni): a one-hidden-layer network in
 //! parallel with the nominal kinematics learns what the nominal model gets wrong, for serial and
-//! parallel robots alike.
+//! parallel robots alike (any [`Robot`](crate::kinematics::Robot)).
 //!
 //! | module | holds |
 //! |---|---|
-//! | [`network`] | the network, batch back-propagation with momentum, early stopping |
-//! | [`kinematics`] | the [`Kinematics`] trait (forward, inverse) for serial chains and the Stewart platform |
-//! | [`schemes`] | direct and inverse schemes 2 and 4, apparent/actual error, FI (eq. 5) |
-//! | [`direct_schemes`] | the other direct schemes (1, 3, 5, 6, 7) for Table 5's comparison and Table 17 |
-//! | [`scara2`], [`stewart`], [`scara3`] | the paper's simulated robots |
-//! | [`reproduce`] | Tables 4–8, 10–12, 16–18 beside the paper's numbers |
+//! | [`network`] | the network, batch back-propagation with momentum or Levenberg–Marquardt, early stopping |
+//! | [`schemes`] | direct and inverse schemes 2 and 4: training, the pose and joints a model predicts |
 //! | [`rig_model`] | a network as an error model of a rig's chain (model files, compensation, `compare`) |
 //!
+//! The paper's robots, its other schemes and the reproductions of its tables are not part of the
+//! calibration tool: they live in the `reproduce` module, which uses this one (never the
+//! reverse).
+//!
 //! # Units
-//! Millimetres and radians inside; millimetres and degrees in files and reports (the Stewart
-//! platform's orientation errors in mrad, as in the paper).
+//! Millimetres and radians inside; millimetres and degrees in files and reports.
 
-pub mod direct_schemes;
-pub mod kinematics;
 pub mod network;
-pub mod reproduce;
 pub mod rig_model;
-pub mod scara2;
-pub mod scara3;
 pub mod schemes;
-pub mod stewart;
 
-pub use kinematics::{Kinematics, KinematicsError, SerialKinematics};
+use crate::kinematics::KinematicsError;
 pub use network::{Network, Scaler, TrainConfig, TrainOutcome};
-pub use schemes::{AngularSum, ErrorStats, NkModel, Sample, Scheme};
+pub use schemes::{AngularSum, NkModel, Sample, Scheme};
 
 /// What went wrong in neural calibration.
 #[derive(Debug, thiserror::Error)]

@@ -13,12 +13,11 @@
 //! Units: the network works in internal units (rad, mm); the model file stores its weights
 //! and scalings as plain numbers.
 
-use super::kinematics::SerialKinematics;
 use super::network::{TrainConfig, TrainOutcome};
 use super::schemes::{AngularSum, NkModel, Sample, Scheme};
 use super::NeuralError;
 use crate::identification::Observation;
-use crate::kinematics::{ErrorModel, ErrorParams, JointKind, ParamLayout, Robot};
+use crate::kinematics::{ErrorModel, ErrorParams, HeldChain, JointKind, ParamLayout, Robot};
 use crate::rig::Rig;
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
@@ -45,7 +44,7 @@ pub fn train_on_rig(
     scheme: Scheme,
     cfg: &TrainConfig,
 ) -> Result<(NeuralModel, TrainOutcome), NeuralError> {
-    let kin = SerialKinematics::new(rig.chain.clone(), rig.held());
+    let kin = HeldChain::new(rig.chain.clone(), rig.held());
     let data: Vec<Sample> = obs
         .iter()
         .map(|o| Sample {

@@ -23,13 +23,12 @@
 //! (direct 4) or K(Q) − S_re (inverse 4); the network then fits them by least squares, which is
 //! the paper's E = ‖S_re − S_NK‖ to first order.
 //!
-//! # Errors reported (section 4.4)
-//! Direct: E = ‖S_NK(Q) − S‖. Inverse: the equivalent pose error ‖J·(Q_re − Q_NK)‖ with J the
-//! nominal Jacobian at Q_re. *Apparent* against the measured (noisy) pose, *actual* against the
-//! pose of the robot with its constant errors only; E_r = ‖S_noisy − S_constant‖ and the
-//! filtering index FI = mean E_ac / mean E_r (eq. 5).
+//! How well a model does on simulated robots (apparent and actual errors, FI) is the
+//! reproductions' business (`reproduce::evaluation`).
 
-use super::kinematics::{difference, newton_inverse, wrap, Kinematics, KinematicsError};
+use crate::kinematics::{
+    difference, newton_solve, numeric_pose_jacobian, wrap, KinematicsError, Robot,
+};
 use super::network::{columns, Network, Scaler, TrainConfig, TrainOutcome};
 use super::NeuralError;
 use serde::{Deserialize, Serialize};
@@ -95,12 +94,10 @@ pub struct Sample {
     pub q: Vec<f64>,
     /// Pose measured (mm, rad), random errors included.
     pub s: Vec<f64>,
-    /// The pose the robot reaches with its constant errors only, when the truth is known.
+    /// The pose the robot reaches with its constant errors only, where a simulation knows it
+    /// (`None` for measurements; training never reads it).
     pub s_true: Option<Vec<f64>>,
 }
-
-/// Apparent error vectors, and actual ones where the truth is known, per sample.
-pub type ErrorVectors = (Vec<Vec<f64>>, Vec<Option<Vec<f64>>>);
 
 /// A trained neuro-kinematic model: scheme, scalings and network.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -140,14 +137,14 @@ pub(crate) fn decode_trig(y: &[f64], is_angle: &[bool]) -> Vec<f64> {
 /// Which joint and which pose coordinates of `nominal` are angles; refuses fewer than two
 /// training samples.
 pub(crate) fn angle_flags(
-    nominal: &dyn Kinematics,
+    nominal: &dyn Robot,
     samples: usize,
 ) -> Result<(Vec<bool>, Vec<bool>), NeuralError> {
     if samples < 2 {
         return Err(NeuralError::TooFewSamples { got: samples });
     }
     Ok((
-        (0..nominal.joint_count())
+        (0..nominal.dof())
             .map(|i| nominal.joint_is_angle(i))
             .collect(),
         (0..nominal.pose_len())
@@ -227,7 +224,7 @@ impl NkModel {
 
     /// Trains a model of `scheme` on measured pairs with the nominal kinematics `nominal`.
     pub fn train(
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         data: &[Sample],
         scheme: Scheme,
         angular_sum: AngularSum,
@@ -239,7 +236,7 @@ impl NkModel {
     /// [`NkModel::train`], calling `observe(epoch, model)` with the model as it stands after
     /// every epoch (for learning curves).
     pub fn train_observed(
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         data: &[Sample],
         scheme: Scheme,
         angular_sum: AngularSum,
@@ -318,7 +315,7 @@ impl NkModel {
 
     /// The pose predicted for joint values `q` (direct schemes; an inverse scheme is inverted
     /// numerically around `q`).
-    pub fn pose(&self, nominal: &dyn Kinematics, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+    pub fn pose(&self, nominal: &dyn Robot, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
         match self.scheme {
             Scheme::Direct2 => {
                 let d = self.correction(q);
@@ -334,7 +331,7 @@ impl NkModel {
                 for _ in 0..20 {
                     let qq = self.joints(nominal, &s, q)?;
                     let dq = difference(q, &qq, |i| self.joint_angle[i]);
-                    let j = nominal.jacobian(&qq)?;
+                    let j = nominal.pose_jacobian(&qq)?;
                     let ds = j * nalgebra::DVector::from_vec(dq.clone());
                     s = sum_coords(&s, ds.as_slice(), &self.pose_angle);
                     if dq.iter().map(|v| v * v).sum::<f64>().sqrt() < 1e-12 {
@@ -350,7 +347,7 @@ impl NkModel {
     /// by Newton–Raphson). `guess` picks the branch.
     pub fn joints(
         &self,
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         s: &[f64],
         guess: &[f64],
     ) -> Result<Vec<f64>, KinematicsError> {
@@ -367,107 +364,19 @@ impl NkModel {
             }
             Scheme::Direct2 | Scheme::Direct4 => {
                 let start = nominal.inverse(s, guess)?;
-                let k = NkForward {
-                    model: self,
-                    nominal,
-                };
-                newton_inverse(&k, s, &start, 1e-9, 30)
+                let forward = |q: &[f64]| self.pose(nominal, q);
+                let jacobian =
+                    |q: &[f64]| numeric_pose_jacobian(&forward, q, &|i| nominal.joint_is_angle(i));
+                newton_solve(
+                    &forward,
+                    &jacobian,
+                    &|i| nominal.pose_is_angle(i),
+                    s,
+                    &start,
+                    1e-9,
+                    30,
+                )
             }
         }
     }
-
-    /// Apparent and actual pose-error vectors on `data` (see the module docs); the actual ones
-    /// only where the truth is known.
-    pub fn errors(
-        &self,
-        nominal: &dyn Kinematics,
-        data: &[Sample],
-    ) -> Result<ErrorVectors, NeuralError> {
-        let mut ap = Vec::with_capacity(data.len());
-        let mut ac = Vec::with_capacity(data.len());
-        let pa = |i: usize| self.pose_angle[i];
-        for (index, smp) in data.iter().enumerate() {
-            let kin = |source: KinematicsError| NeuralError::Kinematics { index, source };
-            if self.scheme.is_direct() {
-                let p = self.pose(nominal, &smp.q).map_err(kin)?;
-                ap.push(difference(&p, &smp.s, pa));
-                ac.push(smp.s_true.as_ref().map(|t| difference(&p, t, pa)));
-            } else {
-                let j = nominal.jacobian(&smp.q).map_err(kin)?;
-                let eq = |s: &[f64]| -> Result<Vec<f64>, NeuralError> {
-                    let qn = self.joints(nominal, s, &smp.q).map_err(kin)?;
-                    let dq = difference(&smp.q, &qn, |i| self.joint_angle[i]);
-                    Ok((&j * nalgebra::DVector::from_vec(dq)).as_slice().to_vec())
-                };
-                ap.push(eq(&smp.s)?);
-                ac.push(match &smp.s_true {
-                    Some(t) => Some(eq(t)?),
-                    None => None,
-                });
-            }
-        }
-        Ok((ap, ac))
-    }
-}
-
-/// An NK direct model as [`Kinematics`] (for Newton inversion).
-struct NkForward<'a> {
-    model: &'a NkModel,
-    nominal: &'a dyn Kinematics,
-}
-
-impl Kinematics for NkForward<'_> {
-    fn joint_count(&self) -> usize {
-        self.nominal.joint_count()
-    }
-    fn pose_len(&self) -> usize {
-        self.nominal.pose_len()
-    }
-    fn joint_is_angle(&self, i: usize) -> bool {
-        self.nominal.joint_is_angle(i)
-    }
-    fn pose_is_angle(&self, i: usize) -> bool {
-        self.nominal.pose_is_angle(i)
-    }
-    fn forward(&self, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
-        self.model.pose(self.nominal, q)
-    }
-    fn inverse(&self, s: &[f64], guess: &[f64]) -> Result<Vec<f64>, KinematicsError> {
-        self.model.joints(self.nominal, s, guess)
-    }
-}
-
-/// Mean and maximum of the norms of error vectors over a range of coordinates.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
-pub struct ErrorStats {
-    /// Mean norm.
-    pub mean: f64,
-    /// Largest norm.
-    pub max: f64,
-}
-
-impl ErrorStats {
-    /// Statistics of ‖v[range]‖ · `scale` over the vectors.
-    pub fn of<'a>(
-        v: impl IntoIterator<Item = &'a Vec<f64>>,
-        range: std::ops::Range<usize>,
-        scale: f64,
-    ) -> Self {
-        let norms: Vec<f64> = v
-            .into_iter()
-            .map(|x| x[range.clone()].iter().map(|a| a * a).sum::<f64>().sqrt() * scale)
-            .collect();
-        if norms.is_empty() {
-            return Self::default();
-        }
-        Self {
-            mean: norms.iter().sum::<f64>() / norms.len() as f64,
-            max: norms.iter().copied().fold(0.0, f64::max),
-        }
-    }
-}
-
-/// The filtering index FI = mean E_ac / mean E_r (eq. 5).
-pub fn filtering_index(actual_mean: f64, random_mean: f64) -> Option<f64> {
-    (random_mean > 0.0).then(|| actual_mean / random_mean)
 }

@@ -3,7 +3,8 @@
 //! structural errors of Table 9.
 //!
 //! # Conventions and choices
-//! Millimetres and radians inside. Joints Q = the six leg lengths (mm). Gripper pose
+//! Millimetres and radians inside. Joints Q = the six leg lengths (mm; prismatic, no stroke
+//! limits: the paper gives none). Gripper pose
 //! S = [x, y, z, ψ, θ, φ] with M_bg = Trans(x, y, z)·Rot(X, ψ)·Rot(Y, θ)·Rot(Z, φ); the platform
 //! frame is M_bp = M_bg·Trans(Z, −z_pg), z_pg = 200 mm.
 //! Base hinges B_i: a regular hexagon of radius 1000 mm in the base plane, B_i at 60°·i. Platform
@@ -12,10 +13,17 @@
 //! polygons but not the pairing). Each leg has its own platform hinge point in the error model.
 //! The workspace is missing from the text (conventions §10); we take x, y ∈ ±100 mm,
 //! z ∈ [1000, 1200] mm, ψ, θ, φ ∈ ±5° (uniform).
+//!
+//! As a measured point, the platform is its gripper position (x, y, z) from the direct
+//! kinematics; it carries no error parameters (its errors are the simulation's, calibrated by
+//! networks only).
 
-use super::kinematics::{Kinematics, KinematicsError};
+use crate::kinematics::{
+    no_error_parameters, ErrorParams, JointKind, JointSpec, KinematicsError, ParamLayout, Robot,
+};
 use nalgebra::{DMatrix, DVector, Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::RngExt;
+use std::sync::LazyLock;
 
 /// Gripper offset from the platform (mm).
 pub const Z_PG_MM: f64 = 200.0;
@@ -182,25 +190,60 @@ pub fn home_pose() -> Vec<f64> {
     vec![0.0, 0.0, 1100.0, 0.0, 0.0, 0.0]
 }
 
-impl Kinematics for Stewart {
-    fn joint_count(&self) -> usize {
-        6
+/// The six legs, prismatic, without stroke limits.
+static LEGS: LazyLock<[JointSpec; 6]> = LazyLock::new(|| {
+    std::array::from_fn(|i| JointSpec {
+        name: format!("leg{}", i + 1),
+        kind: JointKind::Prismatic,
+        min: 0.0,
+        max: f64::INFINITY,
+    })
+});
+
+impl Robot for Stewart {
+    fn joints(&self) -> &[JointSpec] {
+        LEGS.as_slice()
     }
     fn pose_len(&self) -> usize {
         6
     }
-    fn joint_is_angle(&self, _i: usize) -> bool {
-        false
-    }
     fn pose_is_angle(&self, i: usize) -> bool {
         i >= 3
     }
+    /// Direct kinematics by Newton–Raphson from [`home_pose`], to 1e-10 mm on the legs.
     fn forward(&self, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
         self.direct(q, &home_pose(), 1e-10)
     }
+    /// Closed form (eq. 6): one solution, whatever the guess.
     fn inverse(&self, s: &[f64], _guess: &[f64]) -> Result<Vec<f64>, KinematicsError> {
         let l = self.leg_lengths(s);
         Ok((0..6).map(|i| l[i] - self.leg_offset[i]).collect())
+    }
+    fn layout(&self) -> &ParamLayout {
+        no_error_parameters()
+    }
+    /// The gripper position; NaN where the direct kinematics does not converge
+    /// ([`Robot::forward`] says why).
+    fn position(&self, q: &[f64], _e: &ErrorParams) -> Vector3<f64> {
+        match self.forward(q) {
+            Ok(s) => Vector3::new(s[0], s[1], s[2]),
+            Err(_) => Vector3::repeat(f64::NAN),
+        }
+    }
+    fn position_and_param_jacobian(
+        &self,
+        q: &[f64],
+        e: &ErrorParams,
+    ) -> (Vector3<f64>, DMatrix<f64>) {
+        (self.position(q, e), DMatrix::zeros(3, 0))
+    }
+    /// The position rows of [`Robot::pose_jacobian`]; NaN where the direct kinematics does not
+    /// converge.
+    fn joint_jacobian(&self, q: &[f64], _e: &ErrorParams) -> DMatrix<f64> {
+        match self.pose_jacobian(q) {
+            Ok(j) => j.rows(0, 3).into_owned(),
+            Err(_) => DMatrix::from_element(3, 6, f64::NAN),
+        }
     }
 }
 

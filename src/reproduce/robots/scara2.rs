@@ -3,8 +3,10 @@
 //! forces, plus random errors.
 //!
 //! # Conventions and choices
-//! Millimetres and radians inside (Table 4's degrees converted). Joints Q = [α, β]; gripper
-//! S = [x, y] (mm).
+//! Millimetres and radians inside (Table 4's degrees converted). Joints Q = [α, β] (limits: the
+//! working area); gripper S = [x, y] (mm); as a measured point (x, y, 0): the robot has no
+//! vertical axis. It carries no error parameters (its errors are the simulation's, calibrated by
+//! networks only).
 //!
 //! The paper gives neither the working area nor the force points P1 and P2 of Fig. 1. We chose
 //! them so that the errors before calibration match all six figures of Table 4
@@ -26,8 +28,13 @@
 //! the deflection changes the torques by < 1 %). Random errors (Table 6) are drawn uniformly in
 //! ±amplitude for every pose.
 
-use super::kinematics::{Kinematics, KinematicsError};
+use crate::kinematics::{
+    no_error_parameters, wrap, ErrorParams, JointKind, JointSpec, KinematicsError, ParamLayout,
+    Robot,
+};
+use nalgebra::{DMatrix, Vector3};
 use rand::RngExt;
+use std::sync::LazyLock;
 
 /// Link lengths of Table 4 (mm).
 pub const LINK_MM: f64 = 330.0;
@@ -81,26 +88,54 @@ impl Default for Scara2 {
     }
 }
 
-impl Kinematics for Scara2 {
-    fn joint_count(&self) -> usize {
-        2
+/// α and β, revolute, limited to the working area.
+static JOINTS: LazyLock<[JointSpec; 2]> = LazyLock::new(|| {
+    let joint = |name: &str, (min, max): (f64, f64)| JointSpec {
+        name: name.into(),
+        kind: JointKind::Revolute,
+        min,
+        max,
+    };
+    [
+        joint("alpha", WORKING_AREA.alpha),
+        joint("beta", WORKING_AREA.beta),
+    ]
+});
+
+impl Scara2 {
+    /// The gripper (x, y) at joints `q` (eq. 1).
+    fn xy(&self, q: &[f64]) -> [f64; 2] {
+        let (a, b) = (q[0], q[1]);
+        [
+            self.l1 * a.cos() + self.l2 * (a + b).cos(),
+            self.l1 * a.sin() + self.l2 * (a + b).sin(),
+        ]
+    }
+
+    /// ∂(x, y)/∂(α, β), row-major.
+    fn xy_jacobian(&self, q: &[f64]) -> [f64; 4] {
+        let (a, b) = (q[0], q[1]);
+        let (s1, c1, s12, c12) = (a.sin(), a.cos(), (a + b).sin(), (a + b).cos());
+        [
+            -self.l1 * s1 - self.l2 * s12,
+            -self.l2 * s12,
+            self.l1 * c1 + self.l2 * c12,
+            self.l2 * c12,
+        ]
+    }
+}
+
+impl Robot for Scara2 {
+    fn joints(&self) -> &[JointSpec] {
+        JOINTS.as_slice()
     }
     fn pose_len(&self) -> usize {
         2
     }
-    fn joint_is_angle(&self, _i: usize) -> bool {
-        true
-    }
-    fn pose_is_angle(&self, _i: usize) -> bool {
-        false
-    }
     fn forward(&self, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
-        let (a, b) = (q[0], q[1]);
-        Ok(vec![
-            self.l1 * a.cos() + self.l2 * (a + b).cos(),
-            self.l1 * a.sin() + self.l2 * (a + b).sin(),
-        ])
+        Ok(self.xy(q).to_vec())
     }
+    /// Closed form (eq. 2); the sign of the guess's β picks the elbow branch.
     fn inverse(&self, s: &[f64], guess: &[f64]) -> Result<Vec<f64>, KinematicsError> {
         let (x, y) = (s[0], s[1]);
         let c = (x * x + y * y - self.l1 * self.l1 - self.l2 * self.l2) / (2.0 * self.l1 * self.l2);
@@ -117,21 +152,28 @@ impl Kinematics for Scara2 {
         };
         let b = sign * c.acos();
         let a = y.atan2(x) - (self.l2 * b.sin()).atan2(self.l1 + self.l2 * b.cos());
-        Ok(vec![super::kinematics::wrap(a), b])
+        Ok(vec![wrap(a), b])
     }
-    fn jacobian(&self, q: &[f64]) -> Result<nalgebra::DMatrix<f64>, KinematicsError> {
-        let (a, b) = (q[0], q[1]);
-        let (s1, c1, s12, c12) = (a.sin(), a.cos(), (a + b).sin(), (a + b).cos());
-        Ok(nalgebra::DMatrix::from_row_slice(
-            2,
-            2,
-            &[
-                -self.l1 * s1 - self.l2 * s12,
-                -self.l2 * s12,
-                self.l1 * c1 + self.l2 * c12,
-                self.l2 * c12,
-            ],
-        ))
+    fn pose_jacobian(&self, q: &[f64]) -> Result<DMatrix<f64>, KinematicsError> {
+        Ok(DMatrix::from_row_slice(2, 2, &self.xy_jacobian(q)))
+    }
+    fn layout(&self) -> &ParamLayout {
+        no_error_parameters()
+    }
+    fn position(&self, q: &[f64], _e: &ErrorParams) -> Vector3<f64> {
+        let [x, y] = self.xy(q);
+        Vector3::new(x, y, 0.0)
+    }
+    fn position_and_param_jacobian(
+        &self,
+        q: &[f64],
+        e: &ErrorParams,
+    ) -> (Vector3<f64>, DMatrix<f64>) {
+        (self.position(q, e), DMatrix::zeros(3, 0))
+    }
+    fn joint_jacobian(&self, q: &[f64], _e: &ErrorParams) -> DMatrix<f64> {
+        let j = self.xy_jacobian(q);
+        DMatrix::from_row_slice(3, 2, &[j[0], j[1], j[2], j[3], 0.0, 0.0])
     }
 }
 

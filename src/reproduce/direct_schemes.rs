@@ -1,6 +1,6 @@
 //! The other direct neuro-kinematic schemes of seed 001 Fig. 5 (1, 3, 5, 6 and 7), for the
 //! comparison of all seven in Table 5. Schemes 2 and 4, the ones rigcal calibrates with, are in
-//! [`super::schemes`].
+//! [`crate::neural::schemes`].
 //!
 //! # How we read the figures
 //! The figures are not in the text we have. What the text says about them: schemes 1–5 feed
@@ -24,10 +24,13 @@
 //!
 //! Units: millimetres and radians inside.
 
-use super::kinematics::{difference, wrap, Kinematics, KinematicsError};
-use super::network::{columns, MappedResidual, Network, Scaler, TrainConfig, TrainOutcome};
-use super::schemes::{angle_flags, decode_trig, share_sine_scale, ErrorVectors, NkModel, Sample};
-use super::NeuralError;
+use super::evaluation::{ErrorVectors, PoseErrors};
+use crate::kinematics::{difference, wrap, KinematicsError, Robot};
+use crate::neural::network::{
+    columns, MappedResidual, Network, Scaler, TrainConfig, TrainOutcome,
+};
+use crate::neural::schemes::{angle_flags, decode_trig, share_sine_scale, NkModel, Sample};
+use crate::neural::NeuralError;
 use nalgebra::DMatrix;
 
 /// Most Levenberg–Marquardt steps of scheme 3 (its fits converge within a few hundred).
@@ -124,13 +127,13 @@ fn sum_angles(x: &[f64], d: &[f64], is_angle: &[bool]) -> Vec<f64> {
 }
 
 impl OtherDirectModel {
-    fn input(&self, nominal: &dyn Kinematics, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+    fn input(&self, nominal: &dyn Robot, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
         Self::input_of(self.scheme, nominal, q, &self.joint_angle, &self.pose_angle)
     }
 
     fn input_of(
         scheme: OtherDirect,
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         q: &[f64],
         joint_angle: &[bool],
         pose_angle: &[bool],
@@ -151,7 +154,7 @@ impl OtherDirectModel {
     /// [`SCHEME3_MAX_ITERATIONS`] steps, and with early stopping at most
     /// [`SCHEME3_PATIENCE`] steps without a better held-out error.
     pub fn train(
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         data: &[Sample],
         scheme: OtherDirect,
         cfg: &TrainConfig,
@@ -162,7 +165,7 @@ impl OtherDirectModel {
     /// [`OtherDirectModel::train`], calling `observe(epoch, model)` with the model as it stands
     /// after every epoch or step (for learning curves).
     pub fn train_observed(
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         data: &[Sample],
         scheme: OtherDirect,
         cfg: &TrainConfig,
@@ -176,40 +179,12 @@ impl OtherDirectModel {
             inputs.push(
                 Self::input_of(scheme, nominal, &smp.q, &joint_angle, &pose_angle).map_err(kin)?,
             );
-            let target = match scheme {
-                OtherDirect::Scheme1 => {
-                    encode(&nominal.inverse(&smp.s, &smp.q).map_err(kin)?, &joint_angle)
-                }
-                OtherDirect::Scheme3 => {
-                    // Only to scale the outputs: the joint correction alone and the pose
-                    // correction alone.
-                    let qs = nominal.inverse(&smp.s, &smp.q).map_err(kin)?;
-                    let dq = difference(&qs, &smp.q, |i| joint_angle[i]);
-                    let s0 = nominal.forward(&smp.q).map_err(kin)?;
-                    let ds = difference(&smp.s, &s0, |i| pose_angle[i]);
-                    let mut t = encode(&dq, &joint_angle);
-                    t.extend(encode(&ds, &pose_angle));
-                    t
-                }
-                OtherDirect::Scheme5 | OtherDirect::Scheme7 => encode(&smp.s, &pose_angle),
-                OtherDirect::Scheme6 => {
-                    let s0 = nominal.forward(&smp.q).map_err(kin)?;
-                    encode(&difference(&smp.s, &s0, |i| pose_angle[i]), &pose_angle)
-                }
-            };
-            targets.push(target);
+            targets.push(
+                Self::target_of(scheme, nominal, smp, &joint_angle, &pose_angle).map_err(kin)?,
+            );
         }
         let input_scaler = Scaler::fit(&inputs);
-        let mut output_scaler = Scaler::fit(&targets);
-        match scheme {
-            OtherDirect::Scheme3 => {
-                share_sine_scale(&mut output_scaler, &joint_angle, 0);
-                let offset = joint_angle.iter().map(|&a| 1 + a as usize).sum();
-                share_sine_scale(&mut output_scaler, &pose_angle, offset);
-            }
-            OtherDirect::Scheme6 => share_sine_scale(&mut output_scaler, &pose_angle, 0),
-            _ => {}
-        }
+        let output_scaler = Self::output_scaler(scheme, &targets, &joint_angle, &pose_angle);
         let x = columns(
             &inputs
                 .iter()
@@ -217,39 +192,102 @@ impl OtherDirectModel {
                 .collect::<Vec<_>>(),
         );
         let outputs = targets.first().map_or(0, Vec::len);
-        let mut network = Network::new(x.nrows(), cfg.hidden, outputs, cfg.seed);
         let mut model = Self {
             scheme,
             joint_angle,
             pose_angle,
             input_scaler,
             output_scaler,
-            network: network.clone(),
+            network: Network::new(x.nrows(), cfg.hidden, outputs, cfg.seed),
         };
-        let mut view = model.clone();
+        let outcome = model.fit(nominal, data, &x, &targets, cfg, observe);
+        Ok((model, outcome))
+    }
+
+    /// What the network of `scheme` is trained on for one sample (for scheme 3, only to scale
+    /// the outputs: the joint correction alone and the pose correction alone).
+    fn target_of(
+        scheme: OtherDirect,
+        nominal: &dyn Robot,
+        smp: &Sample,
+        joint_angle: &[bool],
+        pose_angle: &[bool],
+    ) -> Result<Vec<f64>, KinematicsError> {
+        Ok(match scheme {
+            OtherDirect::Scheme1 => encode(&nominal.inverse(&smp.s, &smp.q)?, joint_angle),
+            OtherDirect::Scheme3 => {
+                let qs = nominal.inverse(&smp.s, &smp.q)?;
+                let dq = difference(&qs, &smp.q, |i| joint_angle[i]);
+                let s0 = nominal.forward(&smp.q)?;
+                let ds = difference(&smp.s, &s0, |i| pose_angle[i]);
+                let mut t = encode(&dq, joint_angle);
+                t.extend(encode(&ds, pose_angle));
+                t
+            }
+            OtherDirect::Scheme5 | OtherDirect::Scheme7 => encode(&smp.s, pose_angle),
+            OtherDirect::Scheme6 => {
+                let s0 = nominal.forward(&smp.q)?;
+                encode(&difference(&smp.s, &s0, |i| pose_angle[i]), pose_angle)
+            }
+        })
+    }
+
+    /// The scaling of the targets, every cosine output sharing its sine's scale.
+    fn output_scaler(
+        scheme: OtherDirect,
+        targets: &[Vec<f64>],
+        joint_angle: &[bool],
+        pose_angle: &[bool],
+    ) -> Scaler {
+        let mut output_scaler = Scaler::fit(targets);
+        match scheme {
+            OtherDirect::Scheme3 => {
+                share_sine_scale(&mut output_scaler, joint_angle, 0);
+                let offset = joint_angle.iter().map(|&a| 1 + a as usize).sum();
+                share_sine_scale(&mut output_scaler, pose_angle, offset);
+            }
+            OtherDirect::Scheme6 => share_sine_scale(&mut output_scaler, pose_angle, 0),
+            _ => {}
+        }
+        output_scaler
+    }
+
+    /// Trains the network on scaled inputs `x`: scheme 3 end to end by Levenberg–Marquardt,
+    /// the others on their `targets`.
+    fn fit(
+        &mut self,
+        nominal: &dyn Robot,
+        data: &[Sample],
+        x: &nalgebra::DMatrix<f64>,
+        targets: &[Vec<f64>],
+        cfg: &TrainConfig,
+        observe: &mut dyn FnMut(usize, &OtherDirectModel),
+    ) -> TrainOutcome {
+        let mut network = self.network.clone();
+        let mut view = self.clone();
         let mut watch = |epoch: usize, net: &Network| {
             view.network.clone_from(net);
             observe(epoch, &view);
         };
-        let outcome = if scheme == OtherDirect::Scheme3 {
-            let residual = |p: usize, y: &[f64]| model.scheme3_residual(nominal, &data[p], y);
+        let outcome = if self.scheme == OtherDirect::Scheme3 {
+            let residual = |p: usize, y: &[f64]| self.scheme3_residual(nominal, &data[p], y);
             let lm = TrainConfig {
                 epochs: cfg.epochs.min(SCHEME3_MAX_ITERATIONS),
                 patience: cfg.patience.min(SCHEME3_PATIENCE),
                 ..*cfg
             };
-            network.train_through_observed(&x, &residual, &lm, &mut watch)
+            network.train_through_observed(x, &residual, &lm, &mut watch)
         } else {
             let t = columns(
                 &targets
                     .iter()
-                    .map(|r| model.output_scaler.apply(r))
+                    .map(|r| self.output_scaler.apply(r))
                     .collect::<Vec<_>>(),
             );
-            network.train_observed(&x, &t, cfg, &mut watch)
+            network.train_observed(x, &t, cfg, &mut watch)
         };
-        model.network = network;
-        Ok((model, outcome))
+        self.network = network;
+        outcome
     }
 
     /// Scheme 3: the joint and pose corrections from raw outputs `z`.
@@ -265,7 +303,7 @@ impl OtherDirectModel {
     /// its derivatives with respect to `y`.
     fn scheme3_residual(
         &self,
-        nominal: &dyn Kinematics,
+        nominal: &dyn Robot,
         smp: &Sample,
         y: &[f64],
     ) -> Option<MappedResidual> {
@@ -280,7 +318,7 @@ impl OtherDirectModel {
         let e = difference(&s, &smp.s, |i| self.pose_angle[i]);
         let r: Vec<f64> = e.iter().zip(&pose_sigma).map(|(v, w)| v / w).collect();
         // ∂S/∂z = [J_K(Q_c) · ∂dq/∂z_q, ∂ds/∂z_s]; ∂z/∂y = diag(scale).
-        let jk = nominal.jacobian(&qc).ok()?;
+        let jk = nominal.pose_jacobian(&qc).ok()?;
         let dq_dz = decode_jacobian(&z[..nq], &self.joint_angle);
         let ds_dz = decode_jacobian(&z[nq..], &self.pose_angle);
         let mut d = DMatrix::zeros(r.len(), z.len());
@@ -296,7 +334,7 @@ impl OtherDirectModel {
     }
 
     /// The pose predicted for joint values `q`.
-    pub fn pose(&self, nominal: &dyn Kinematics, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
+    pub fn pose(&self, nominal: &dyn Robot, q: &[f64]) -> Result<Vec<f64>, KinematicsError> {
         let x = self.input_scaler.apply(&self.input(nominal, q)?);
         let z = self.output_scaler.invert(&self.network.predict(&x));
         match self.scheme {
@@ -315,12 +353,10 @@ impl OtherDirectModel {
         }
     }
 
-    /// Apparent and actual pose-error vectors on `data` (as [`NkModel::errors`]).
-    pub fn errors(
-        &self,
-        nominal: &dyn Kinematics,
-        data: &[Sample],
-    ) -> Result<ErrorVectors, NeuralError> {
+}
+
+impl PoseErrors for OtherDirectModel {
+    fn errors(&self, nominal: &dyn Robot, data: &[Sample]) -> Result<ErrorVectors, NeuralError> {
         let pa = |i: usize| self.pose_angle[i];
         let mut ap = Vec::with_capacity(data.len());
         let mut ac = Vec::with_capacity(data.len());
@@ -349,7 +385,7 @@ fn decode_scale(scale: &[f64], is_angle: &[bool]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::neural::scara2::{Scara2, Scara2Errors, Scara2Real, WORKING_AREA};
+    use crate::reproduce::robots::scara2::{Scara2, Scara2Errors, Scara2Real, WORKING_AREA};
 
     fn scara2_data(n: usize) -> (Scara2, Vec<Sample>) {
         let nominal = Scara2::default();

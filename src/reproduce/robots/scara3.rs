@@ -1,5 +1,5 @@
 //! The 3-DOF SCARA of seed 001 section 6 (Fig. 9, Tables 13–16): the nominal robot is the rig
-//! file `rigs/scara3.toml` (a [`SerialChain`](crate::kinematics::SerialChain)); the simulated
+//! file `rigs/scara3.toml` (a [`HeldChain`] of its serial chain); the simulated
 //! real robot adds Table 13's geometric errors, Table 14's compliances and the gripper force of
 //! eq. (13) with Table 15's coefficients.
 //!
@@ -17,21 +17,21 @@
 //! Table 13 only: compliance and forces stay, which is what keeps Table 16's random component
 //! E_r the same in both rows.
 
-use super::kinematics::SerialKinematics;
+use crate::kinematics::{wrap, HeldChain};
 use crate::rig::Rig;
 use nalgebra::{Isometry3, Point3, Translation3, UnitQuaternion, Vector3};
 use rand::RngExt;
 
 /// The rig file of the nominal robot.
-pub const RIG_TOML: &str = include_str!("../../rigs/scara3.toml");
+pub const RIG_TOML: &str = include_str!("../../../rigs/scara3.toml");
 
 /// Number of error values: 13 geometric, 5 compliance, 8 force coefficients.
 pub const N_ERRORS: usize = 26;
 
 /// The nominal robot from `rigs/scara3.toml`.
-pub fn nominal() -> Result<(Rig, SerialKinematics), crate::rig::RigError> {
+pub fn nominal() -> Result<(Rig, HeldChain), crate::rig::RigError> {
     let rig = Rig::parse(RIG_TOML, Some(std::path::Path::new("rigs/scara3.toml")))?;
-    let k = SerialKinematics::new(rig.chain.clone(), rig.held());
+    let k = HeldChain::new(rig.chain.clone(), rig.held());
     Ok((rig, k))
 }
 
@@ -165,5 +165,5 @@ pub fn random_joints<R: RngExt + ?Sized>(rng: &mut R) -> Vec<f64> {
     let c = ((r * r - 2.0 * 330.0 * 330.0) / (2.0 * 330.0 * 330.0)).clamp(-1.0, 1.0);
     let q2 = c.acos();
     let q1 = phi - (330.0 * q2.sin()).atan2(330.0 + 330.0 * q2.cos());
-    vec![super::kinematics::wrap(q1), q2, z]
+    vec![wrap(q1), q2, z]
 }
