@@ -413,3 +413,187 @@ fn scara2_rig_file_is_the_closed_form_nominal() {
         assert!((back[0] - q[0]).abs() < 1e-9 && (back[1] - q[1]).abs() < 1e-9);
     }
 }
+
+/// `pose_jacobian` of `robot` at `q` against central differences of its `forward`.
+fn assert_pose_jacobian_matches_differences(name: &str, robot: &dyn Robot, q: &[f64]) {
+    let analytic = robot.pose_jacobian(q).expect("jacobian");
+    let numeric = rigcal::kinematics::numeric_pose_jacobian(&|q| robot.forward(q), q, &|i| {
+        robot.joint_is_angle(i)
+    })
+    .expect("differences");
+    assert_eq!(analytic.shape(), (robot.pose_len(), robot.dof()), "{name}");
+    assert_eq!(analytic.shape(), numeric.shape(), "{name}");
+    for (a, n) in analytic.iter().zip(numeric.iter()) {
+        assert!(
+            (a - n).abs() <= 1e-5 * (1.0 + n.abs()),
+            "{name}: analytic {a} vs numeric {n}"
+        );
+    }
+}
+
+#[test]
+fn analytic_pose_jacobians_match_central_differences() {
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
+    let held = HeldChain::new(rig.chain.clone(), rig.held());
+    let (_, scara3) = scara3::nominal().expect("rig");
+    for _ in 0..10 {
+        let a = [rng.random_range(-1.0..1.0), rng.random_range(0.3..2.5)];
+        assert_pose_jacobian_matches_differences("2-DOF SCARA", &Scara2::default(), &a);
+        let q: Vec<f64> = (0..5).map(|_| rng.random_range(-1.0..1.0)).collect();
+        assert_pose_jacobian_matches_differences("RV-M2 chain", &rig.chain, &q);
+        assert_pose_jacobian_matches_differences("RV-M2, q4 q5 held", &held, &q[..3]);
+        let q3 = scara3::random_joints(&mut rng);
+        assert_pose_jacobian_matches_differences("3-DOF SCARA", &scara3, &q3);
+    }
+}
+
+#[test]
+fn the_paper_robots_measured_point_is_their_pose_and_they_carry_no_error_parameters() {
+    let mut rng = ChaCha8Rng::seed_from_u64(22);
+    let scara = Scara2::default();
+    let stewart = Stewart::nominal();
+    for _ in 0..10 {
+        let q = [rng.random_range(-0.5..0.5), rng.random_range(1.3..2.7)];
+        let s = scara.forward(&q).expect("fk");
+        let e = rigcal::kinematics::ErrorParams::zeros(scara.layout());
+        let (p, m) = scara.position_and_param_jacobian(&q, &e);
+        assert_eq!((p.x, p.y, p.z), (s[0], s[1], 0.0));
+        assert_eq!(m.shape(), (3, 0));
+        let j = scara.pose_jacobian(&q).expect("jacobian");
+        let jq = scara.joint_jacobian(&q, &e);
+        assert_eq!(jq.rows(0, 2), j);
+        assert!(jq.row(2).iter().all(|v| *v == 0.0));
+
+        let legs = stewart
+            .inverse(&Stewart::random_pose(&mut rng), &[])
+            .expect("ik");
+        let s = stewart.forward(&legs).expect("fk");
+        let e = rigcal::kinematics::ErrorParams::zeros(stewart.layout());
+        let p = stewart.position(&legs, &e);
+        assert_eq!((p.x, p.y, p.z), (s[0], s[1], s[2]));
+        let j = stewart.pose_jacobian(&legs).expect("jacobian");
+        assert_eq!(stewart.joint_jacobian(&legs, &e), j.rows(0, 3));
+        assert!(stewart.layout().is_empty() && scara.layout().is_empty());
+    }
+    assert!((0..6).all(|i| stewart.pose_is_angle(i) == (i >= 3)));
+    assert!((0..6).all(|i| !stewart.joint_is_angle(i)));
+    assert!((0..2).all(|i| scara.joint_is_angle(i) && !scara.pose_is_angle(i)));
+}
+
+#[test]
+fn stewart_round_trip_through_the_robot_trait() {
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    let real = Stewart::nominal().perturbed(&StewartErrors::table9_constant().draw(&mut rng));
+    let robot: &dyn Robot = &real;
+    for _ in 0..20 {
+        let s = Stewart::random_pose(&mut rng);
+        let back = robot.forward(&robot.inverse(&s, &[]).expect("ik")).expect("fk");
+        for i in 0..6 {
+            assert!((back[i] - s[i]).abs() < 1e-9, "{i}: {} vs {}", back[i], s[i]);
+        }
+    }
+}
+
+#[test]
+fn serial_chains_invert_their_pose_and_keep_held_joints() {
+    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
+    let held = HeldChain::new(rig.chain.clone(), rig.held());
+    assert_eq!(held.dof(), 3);
+    let mut rng = ChaCha8Rng::seed_from_u64(24);
+    for _ in 0..10 {
+        let q = [
+            rng.random_range(-1.0..1.0),
+            rng.random_range(0.2..1.2),
+            rng.random_range(-1.5..-0.3),
+        ];
+        let s = held.forward(&q).expect("fk");
+        let guess = [q[0] + 0.05, q[1] - 0.05, q[2] + 0.05];
+        let back = held.inverse(&s, &guess).expect("ik");
+        let reached = held.forward(&back).expect("fk");
+        assert!((0..3).all(|i| (reached[i] - s[i]).abs() < 1e-6), "{reached:?} vs {s:?}");
+        let full = held.full(&back);
+        assert_eq!(held.moving_of(&full), back);
+        let from_chain = rig.chain.inverse(&s, &full).expect("ik");
+        let reached = rig.chain.forward(&from_chain).expect("fk");
+        assert!((0..3).all(|i| (reached[i] - s[i]).abs() < 1e-6), "{reached:?} vs {s:?}");
+    }
+}
+
+/// The 2-DOF SCARA without its closed-form inverse: the trait's default Newton–Raphson.
+struct NewtonScara(Scara2);
+
+impl Robot for NewtonScara {
+    fn joints(&self) -> &[rigcal::kinematics::JointSpec] {
+        self.0.joints()
+    }
+    fn pose_len(&self) -> usize {
+        2
+    }
+    fn forward(&self, q: &[f64]) -> Result<Vec<f64>, rigcal::kinematics::KinematicsError> {
+        self.0.forward(q)
+    }
+    fn layout(&self) -> &rigcal::kinematics::ParamLayout {
+        self.0.layout()
+    }
+    fn position(
+        &self,
+        q: &[f64],
+        e: &rigcal::kinematics::ErrorParams,
+    ) -> nalgebra::Vector3<f64> {
+        self.0.position(q, e)
+    }
+    fn position_and_param_jacobian(
+        &self,
+        q: &[f64],
+        e: &rigcal::kinematics::ErrorParams,
+    ) -> (nalgebra::Vector3<f64>, DMatrix<f64>) {
+        self.0.position_and_param_jacobian(q, e)
+    }
+    fn joint_jacobian(&self, q: &[f64], e: &rigcal::kinematics::ErrorParams) -> DMatrix<f64> {
+        self.0.joint_jacobian(q, e)
+    }
+}
+
+#[test]
+fn the_default_inverse_finds_the_closed_form_solution_near_the_guess() {
+    let closed = Scara2::default();
+    let newton = NewtonScara(closed);
+    let mut rng = ChaCha8Rng::seed_from_u64(25);
+    for _ in 0..20 {
+        let q = [rng.random_range(-0.5..0.5), rng.random_range(1.3..2.7)];
+        let s = closed.forward(&q).expect("fk");
+        let guess = [q[0] + 0.1, q[1] - 0.1];
+        let a = newton.inverse(&s, &guess).expect("newton");
+        let b = closed.inverse(&s, &guess).expect("closed form");
+        assert!((a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9, "{a:?} vs {b:?}");
+    }
+}
+
+#[test]
+fn no_product_module_imports_the_reproduction_tree() {
+    // The library a user links is the calibration tool: only the reproduction tree itself and
+    // the `rigcal reproduce` subcommand may name it.
+    let allowed = |p: &std::path::Path| {
+        p.starts_with("src/reproduce") || p == std::path::Path::new("src/cli/reproduce.rs")
+    };
+    let mut stack = vec![std::path::PathBuf::from("src")];
+    let mut offenders = Vec::new();
+    while let Some(dir) = stack.pop() {
+        for entry in std::fs::read_dir(&dir).expect("src") {
+            let path = entry.expect("entry").path();
+            if path.is_dir() {
+                stack.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") && !allowed(&path) {
+                let text = std::fs::read_to_string(&path).expect("source");
+                for (n, line) in text.lines().enumerate() {
+                    let code = line.trim_start();
+                    if !code.starts_with("//") && code.contains("crate::reproduce") {
+                        offenders.push(format!("{}:{}", path.display(), n + 1));
+                    }
+                }
+            }
+        }
+    }
+    assert!(offenders.is_empty(), "{offenders:?}");
+}
