@@ -488,9 +488,16 @@ fn stewart_round_trip_through_the_robot_trait() {
     let robot: &dyn Robot = &real;
     for _ in 0..20 {
         let s = Stewart::random_pose(&mut rng);
-        let back = robot.forward(&robot.inverse(&s, &[]).expect("ik")).expect("fk");
+        let back = robot
+            .forward(&robot.inverse(&s, &[]).expect("ik"))
+            .expect("fk");
         for i in 0..6 {
-            assert!((back[i] - s[i]).abs() < 1e-9, "{i}: {} vs {}", back[i], s[i]);
+            assert!(
+                (back[i] - s[i]).abs() < 1e-9,
+                "{i}: {} vs {}",
+                back[i],
+                s[i]
+            );
         }
     }
 }
@@ -511,12 +518,18 @@ fn serial_chains_invert_their_pose_and_keep_held_joints() {
         let guess = [q[0] + 0.05, q[1] - 0.05, q[2] + 0.05];
         let back = held.inverse(&s, &guess).expect("ik");
         let reached = held.forward(&back).expect("fk");
-        assert!((0..3).all(|i| (reached[i] - s[i]).abs() < 1e-6), "{reached:?} vs {s:?}");
+        assert!(
+            (0..3).all(|i| (reached[i] - s[i]).abs() < 1e-6),
+            "{reached:?} vs {s:?}"
+        );
         let full = held.full(&back);
         assert_eq!(held.moving_of(&full), back);
         let from_chain = rig.chain.inverse(&s, &full).expect("ik");
         let reached = rig.chain.forward(&from_chain).expect("fk");
-        assert!((0..3).all(|i| (reached[i] - s[i]).abs() < 1e-6), "{reached:?} vs {s:?}");
+        assert!(
+            (0..3).all(|i| (reached[i] - s[i]).abs() < 1e-6),
+            "{reached:?} vs {s:?}"
+        );
     }
 }
 
@@ -536,11 +549,7 @@ impl Robot for NewtonScara {
     fn layout(&self) -> &rigcal::kinematics::ParamLayout {
         self.0.layout()
     }
-    fn position(
-        &self,
-        q: &[f64],
-        e: &rigcal::kinematics::ErrorParams,
-    ) -> nalgebra::Vector3<f64> {
+    fn position(&self, q: &[f64], e: &rigcal::kinematics::ErrorParams) -> nalgebra::Vector3<f64> {
         self.0.position(q, e)
     }
     fn position_and_param_jacobian(
@@ -566,7 +575,10 @@ fn the_default_inverse_finds_the_closed_form_solution_near_the_guess() {
         let guess = [q[0] + 0.1, q[1] - 0.1];
         let a = newton.inverse(&s, &guess).expect("newton");
         let b = closed.inverse(&s, &guess).expect("closed form");
-        assert!((a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9, "{a:?} vs {b:?}");
+        assert!(
+            (a[0] - b[0]).abs() < 1e-9 && (a[1] - b[1]).abs() < 1e-9,
+            "{a:?} vs {b:?}"
+        );
     }
 }
 

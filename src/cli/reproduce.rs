@@ -1,10 +1,10 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
 use crate::neural::network::Method;
+use crate::report::{plot_log_curves, CurvePanel};
 use crate::reproduce::seed001::{
     fig7, table11, table18, table5, table7, Fig7, ReproOptions, Table, TABLE5_POSES,
 };
-use crate::report::{plot_log_curves, CurvePanel};
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 

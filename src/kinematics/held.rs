@@ -3,8 +3,8 @@
 //! learn on, since a held joint is no input of theirs.
 
 use super::pose::{newton_inverse, KinematicsError, NEWTON_ITERATIONS, NEWTON_TOLERANCE};
-use super::{solve_position_ik, ErrorParams, IkOptions, JointSpec, ParamLayout, Robot};
 use super::SerialChain;
+use super::{solve_position_ik, ErrorParams, IkOptions, JointSpec, ParamLayout, Robot};
 use nalgebra::{DMatrix, Vector3};
 
 /// A serial chain whose held joints stay at their values: its joints Q are the chain's moving

@@ -109,13 +109,14 @@ pub fn newton_solve(
             return Ok(q);
         }
         let j = jacobian(&q)?;
-        let dq = j.svd(true, true).solve(&r, 1e-12).map_err(|_| {
-            KinematicsError::NoConvergence {
-                what: "Newton–Raphson inverse",
-                iterations: it,
-                residual,
-            }
-        })?;
+        let dq =
+            j.svd(true, true)
+                .solve(&r, 1e-12)
+                .map_err(|_| KinematicsError::NoConvergence {
+                    what: "Newton–Raphson inverse",
+                    iterations: it,
+                    residual,
+                })?;
         for (qi, d) in q.iter_mut().zip(dq.iter()) {
             *qi += d;
         }

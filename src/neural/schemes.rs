@@ -26,11 +26,11 @@
 //! How well a model does on simulated robots (apparent and actual errors, FI) is the
 //! reproductions' business (`reproduce::evaluation`).
 
+use super::network::{columns, Network, Scaler, TrainConfig, TrainOutcome};
+use super::NeuralError;
 use crate::kinematics::{
     difference, newton_solve, numeric_pose_jacobian, wrap, KinematicsError, Robot,
 };
-use super::network::{columns, Network, Scaler, TrainConfig, TrainOutcome};
-use super::NeuralError;
 use serde::{Deserialize, Serialize};
 
 /// A calibration scheme.

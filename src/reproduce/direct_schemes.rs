@@ -26,9 +26,7 @@
 
 use super::evaluation::{ErrorVectors, PoseErrors};
 use crate::kinematics::{difference, wrap, KinematicsError, Robot};
-use crate::neural::network::{
-    columns, MappedResidual, Network, Scaler, TrainConfig, TrainOutcome,
-};
+use crate::neural::network::{columns, MappedResidual, Network, Scaler, TrainConfig, TrainOutcome};
 use crate::neural::schemes::{angle_flags, decode_trig, share_sine_scale, NkModel, Sample};
 use crate::neural::NeuralError;
 use nalgebra::DMatrix;
@@ -352,7 +350,6 @@ impl OtherDirectModel {
             )),
         }
     }
-
 }
 
 impl PoseErrors for OtherDirectModel {

@@ -155,8 +155,7 @@ impl Table5Fits {
             .map(|per_hidden| {
                 (0..per_hidden.len())
                     .min_by(|&a, &b| {
-                        mean_over_cases(&per_hidden[a])
-                            .total_cmp(&mean_over_cases(&per_hidden[b]))
+                        mean_over_cases(&per_hidden[a]).total_cmp(&mean_over_cases(&per_hidden[b]))
                     })
                     .unwrap_or(0)
             })
@@ -235,7 +234,11 @@ fn selected_rows(text: &mut String, r: &Table5Fits, values: &mut Vec<(String, f6
         );
         for c in 0..3 {
             let case = c + 1;
-            values.push((format!("case {case} scheme {n}"), r.fits[k][h][c].0, paper[c]));
+            values.push((
+                format!("case {case} scheme {n}"),
+                r.fits[k][h][c].0,
+                paper[c],
+            ));
             values.push((
                 format!("case {case} scheme {n} training"),
                 r.fits[k][h][c].1,
@@ -251,7 +254,13 @@ fn detail_rows(text: &mut String, r: &Table5Fits, values: &mut Vec<(String, f64,
     for (k, &scheme) in schemes.iter().enumerate() {
         let n = scheme.number();
         let training = r.selected(k).map(|f| f.1);
-        row(text, &format!("scheme {n}, training set"), training, None, 5);
+        row(
+            text,
+            &format!("scheme {n}, training set"),
+            training,
+            None,
+            5,
+        );
     }
     for (k, &scheme) in schemes.iter().enumerate() {
         for (h, &hidden) in TABLE5_HIDDEN.iter().enumerate() {
