@@ -30,8 +30,6 @@ pub struct SchemeRun {
 }
 
 /// Trains `scheme` on `lea` and evaluates on `lea` and `val`.
-
-/// Trains `scheme` on `lea` and evaluates on `lea` and `val`.
 pub fn run_scheme(
     nominal: &dyn Robot,
     lea: &[Sample],

@@ -109,16 +109,6 @@ fn table5_case(o: &ReproOptions, case: u8, poses: usize) -> Result<Table5Case, N
     })
 }
 
-/// Tables 4 and 5: error before calibration and mean validation error after training direct
-/// schemes 2 and 4 (46 evenly spread training poses, 1244 random validation poses, no early
-/// stopping), cases 1–3.
-///
-/// As in the paper, each scheme is trained with 10, 15 and 20 hidden neurons and the count with
-/// the best validation error (here: the lowest mean over the three cases) is the
-/// scheme's row. The fits use Levenberg–Marquardt; the paper's rule (gradient descent with
-/// momentum, `o.epochs` epochs, 20 neurons) is printed below them: it does not reach the
-/// paper's training range (10⁻⁴…10⁻² mm) in a feasible number of epochs.
-
 /// Table 4: [mean, max] before calibration (mm), per case.
 const TABLE4_PAPER: [[f64; 2]; 3] = [[6.67, 10.2], [8.93, 17.0], [0.76, 1.26]];
 
@@ -232,18 +222,10 @@ fn selected_rows(text: &mut String, r: &Table5Fits, values: &mut Vec<(String, f6
             Some(paper),
             5,
         );
-        for c in 0..3 {
+        for (c, (fit, paper)) in r.fits[k][h].iter().zip(paper).enumerate() {
             let case = c + 1;
-            values.push((
-                format!("case {case} scheme {n}"),
-                r.fits[k][h][c].0,
-                paper[c],
-            ));
-            values.push((
-                format!("case {case} scheme {n} training"),
-                r.fits[k][h][c].1,
-                f64::NAN,
-            ));
+            values.push((format!("case {case} scheme {n}"), fit.0, paper));
+            values.push((format!("case {case} scheme {n} training"), fit.1, f64::NAN));
         }
     }
 }
@@ -281,11 +263,12 @@ fn detail_rows(text: &mut String, r: &Table5Fits, values: &mut Vec<(String, f64,
             None,
             5,
         );
-        for c in 0..3 {
+        let paper = TABLE5_PAPER[n as usize - 1];
+        for (c, (fit, paper)) in r.gradient_descent[k].iter().zip(paper).enumerate() {
             values.push((
                 format!("case {} scheme {n} gradient descent", c + 1),
-                r.gradient_descent[k][c].0,
-                TABLE5_PAPER[n as usize - 1][c],
+                fit.0,
+                paper,
             ));
         }
     }
@@ -351,17 +334,11 @@ pub fn table5(o: &ReproOptions) -> Result<Table, NeuralError> {
     selected_rows(&mut text, &r, &mut t.values);
     detail_rows(&mut text, &r, &mut t.values);
     ranking_rows(&mut text, &r);
-    for c in 0..3 {
-        t.values.push((
-            format!("case {} E_ave before", c + 1),
-            r.before[c].0,
-            TABLE4_PAPER[c][0],
-        ));
-        t.values.push((
-            format!("case {} E_max before", c + 1),
-            r.before[c].1,
-            TABLE4_PAPER[c][1],
-        ));
+    for (c, (before, paper)) in r.before.iter().zip(TABLE4_PAPER).enumerate() {
+        t.values
+            .push((format!("case {} E_ave before", c + 1), before.0, paper[0]));
+        t.values
+            .push((format!("case {} E_max before", c + 1), before.1, paper[1]));
     }
     t.text = text;
     t.notes = table5_notes(o, poses);
