@@ -1,6 +1,6 @@
 //! Kinematics of robots: the [`Robot`] trait every robot implements (serial chains, the held-joint
 //! view of a chain, the paper robots of the reproductions), forward kinematics of serial chains,
-//! the error-parameter Jacobian [M] of seed 000 eq. (2), the joint Jacobian, numeric inverse
+//! the error-parameter Jacobian \[M\] of seed 000 eq. (2), the joint Jacobian, numeric inverse
 //! kinematics and spherical workspace coordinates.
 //!
 //! # Convention and units

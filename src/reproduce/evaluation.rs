@@ -59,7 +59,7 @@ pub struct ErrorStats {
 }
 
 impl ErrorStats {
-    /// Statistics of ‖v[range]‖ · `scale` over the vectors.
+    /// Statistics of ‖v\[range\]‖ · `scale` over the vectors.
     pub fn of<'a>(
         v: impl IntoIterator<Item = &'a Vec<f64>>,
         range: std::ops::Range<usize>,

@@ -20,7 +20,7 @@ const RUNS: [(Scheme, usize, [f64; 5]); 4] = [
     (Scheme::Inverse4, 5, [0.19, 0.66, 0.10, 0.38, 0.62]),
 ];
 
-/// Most hidden neurons [`fewest_neurons_reaching_noise`] tries.
+/// Most hidden neurons the rule for neurons of Tables 7–8 tries.
 pub const TABLE7_MAX_HIDDEN: usize = 10;
 
 /// The paper's rule for Tables 7–8 ("the number of neurons was experimentally minimised in order
