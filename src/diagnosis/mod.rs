@@ -36,7 +36,6 @@ pub mod noise;
 pub mod plots;
 pub mod report;
 pub mod select;
-pub mod stats;
 pub mod table_scale;
 pub mod table_squareness;
 pub mod transmission;

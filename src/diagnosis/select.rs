@@ -11,13 +11,13 @@
 
 use super::noise::{lack_of_fit, pure_error};
 use super::report::{locate, EffectReport, FitSummary, Mismatch, Report};
-use super::stats::f_sf;
 use super::{
     Candidate, Data, DiagnoseError, Index, Standard, ALPHA, AXES, MIN_PURE_ERROR_DOF, MIN_VISIBLE,
     SEPARABLE_CORRELATION,
 };
 use crate::identification::outliers::{remove_outliers, Outlier, OutlierSettings};
 use crate::kinematics::Robot;
+use crate::stats::f_sf;
 use nalgebra::{DMatrix, DVector};
 use std::collections::BTreeMap;
 
