@@ -32,13 +32,21 @@
 pub mod backlash;
 pub mod compliance;
 pub mod drift;
+pub mod effects;
+pub mod heldout;
+pub mod linalg;
 pub mod noise;
+pub mod outliers;
+pub mod pipeline;
 pub mod plots;
+pub mod refit;
 pub mod report;
+pub mod screen;
 pub mod select;
 pub mod table_scale;
 pub mod table_squareness;
 pub mod transmission;
+pub mod unnamed;
 
 pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
 
@@ -587,7 +595,7 @@ pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, Di
                 Ok((d, g, r))
             })
             .collect::<Result<Vec<_>, DiagnoseError>>()?;
-        let (mut report, found) = select::run(&std, &lib, &heldout)?;
+        let (mut report, found) = pipeline::run(&std, &lib, &heldout)?;
         if found.is_empty() || round + 1 == OUTLIER_ROUNDS {
             if !found.is_empty() {
                 report.notes.push(format!(
