@@ -175,3 +175,136 @@ pub fn hcat(blocks: &[DMatrix<f64>], nrows: usize) -> DMatrix<f64> {
     }
     DMatrix::from_columns(&cols)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(got: f64, want: f64, tol: f64) {
+        assert!((got - want).abs() <= tol, "got {got}, want {want}");
+    }
+
+    /// A 9 × 3 matrix of full column rank (3 measurements).
+    fn tall() -> DMatrix<f64> {
+        DMatrix::from_fn(9, 3, |r, c| {
+            ((r * 7 + c * 3) % 5) as f64 - 2.0 + (r * c) as f64 * 0.1
+        })
+    }
+
+    #[test]
+    fn orth_basis_is_orthonormal_and_drops_dependent_columns() {
+        let a = tall();
+        // A fourth column that is a combination of the first two adds no direction.
+        let dependent = a.column(0) * 2.0 - a.column(1) * 0.5;
+        let m = hcat(
+            &[
+                a.clone(),
+                DMatrix::from_column_slice(9, 1, dependent.as_slice()),
+            ],
+            9,
+        );
+        let q = orth_basis(&m, 1e-9);
+        assert_eq!(q.ncols(), 3);
+        assert!((q.transpose() * &q - DMatrix::identity(3, 3)).norm() < 1e-12);
+        // It spans A: projecting A out leaves nothing.
+        assert!(project_out(&q, &a).norm() < 1e-12);
+        assert_eq!(orth_basis(&DMatrix::zeros(9, 0), 1e-9).ncols(), 0);
+    }
+
+    #[test]
+    fn project_out_leaves_the_orthogonal_part() {
+        let q = orth_basis(&tall(), 1e-9);
+        let x = DMatrix::from_fn(9, 2, |r, c| (r as f64 - 4.0).powi(2) + c as f64);
+        let p = project_out(&q, &x);
+        assert!((q.transpose() * &p).norm() < 1e-12);
+        // x = its part in span(q) + p, and the two parts are orthogonal (Pythagoras).
+        let inside = &x - &p;
+        close(
+            x.norm_squared(),
+            inside.norm_squared() + p.norm_squared(),
+            1e-10,
+        );
+        assert_eq!(project_out(&DMatrix::zeros(9, 0), &x), x);
+    }
+
+    #[test]
+    fn visible_basis_measures_what_the_model_cannot_show() {
+        let a = tall();
+        let q = orth_basis(&a, 1e-9);
+        // A column inside the model is absorbed.
+        let inside = DMatrix::from_column_slice(9, 1, (a.column(0) + a.column(2)).as_slice());
+        assert!(visible_basis(&q, &inside).is_none());
+        // A unit column at 45° to the model: visible fraction 1/√2.
+        let u0 = q.column(0).into_owned();
+        let mut e = DVector::zeros(9);
+        e[4] = 1.0;
+        let perp = &e - &q * (q.transpose() * &e);
+        let perp = &perp / perp.norm();
+        let x = DMatrix::from_column_slice(9, 1, (&u0 + &perp).as_slice());
+        let (u, visible) = visible_basis(&q, &x).expect("visible");
+        close(visible, 0.5f64.sqrt(), 1e-12);
+        assert_eq!(u.ncols(), 1);
+        close(u.column(0).dot(&perp).abs(), 1.0, 1e-12);
+    }
+
+    #[test]
+    fn partial_f_is_the_f_test_of_the_added_columns() {
+        // 40 rows, residual dof 30, one added direction u = e0 carrying ΔSS = 4 of RSS = 10.
+        let mut u = DMatrix::zeros(40, 1);
+        u[(0, 0)] = 1.0;
+        let mut r = DVector::from_element(40, (6.0f64 / 39.0).sqrt());
+        r[0] = 2.0;
+        let (p, dss) = partial_f(&u, &r, 30);
+        close(dss, 4.0, 1e-12);
+        // F = (4/1) / (6/29) on (1, 29) degrees of freedom.
+        close(p, f_sf(4.0 / (6.0 / 29.0), 1.0, 29.0), 1e-15);
+        assert!(p < 1e-3);
+        assert_eq!(partial_f(&u, &r, 1), (1.0, 0.0));
+        assert_eq!(partial_f(&DMatrix::zeros(40, 0), &r, 30), (1.0, 0.0));
+    }
+
+    #[test]
+    fn lstsq_solves_full_rank_systems_and_reports_rank() {
+        let a = tall();
+        let x_true = DVector::from_vec(vec![1.5, -2.0, 0.25]);
+        let fit = lstsq(&a, &(&a * &x_true));
+        assert_eq!(fit.rank, 3);
+        assert!((&fit.solution - &x_true).norm() < 1e-10);
+        // (AᵀA)⁺ is the inverse for a full-rank A.
+        let ata = a.transpose() * &a;
+        assert!((&ata * &fit.normal_inverse - DMatrix::identity(3, 3)).norm() < 1e-9);
+        // A repeated column: rank 1, and the minimum-norm solution splits the weight evenly.
+        let twice = hcat(
+            &[a.columns(0, 1).into_owned(), a.columns(0, 1).into_owned()],
+            9,
+        );
+        let fit = lstsq(&twice, &(a.column(0) * 2.0));
+        assert_eq!(fit.rank, 1);
+        assert!((fit.solution[0] - 1.0).abs() < 1e-10 && (fit.solution[1] - 1.0).abs() < 1e-10);
+        assert_eq!(lstsq(&DMatrix::zeros(9, 0), &DVector::zeros(9)).rank, 0);
+    }
+
+    #[test]
+    fn rows_of_pick_whole_measurements_and_rms3_is_per_measurement() {
+        let m = DMatrix::from_fn(9, 2, |r, c| (10 * r + c) as f64);
+        let picked = rows_of(&m, &[2, 0]);
+        assert_eq!(picked.nrows(), 6);
+        assert_eq!(picked[(0, 1)], 61.0);
+        assert_eq!(picked[(3, 0)], 0.0);
+        let v = DVector::from_fn(9, |r, _| r as f64);
+        assert_eq!(rows_of_vector(&v, &[1]).as_slice(), &[3.0, 4.0, 5.0]);
+        // Two measurements of 3-D length 3 and 4: RMS √((9 + 16)/2).
+        let r = DVector::from_vec(vec![3.0, 0.0, 0.0, 0.0, 0.0, 4.0]);
+        close(rms3(&r), 12.5f64.sqrt(), 1e-15);
+    }
+
+    #[test]
+    fn scale_rows_weights_each_row() {
+        let m = DMatrix::from_element(3, 2, 2.0);
+        let w = scale_rows(&m, &[1.0, 0.5, 3.0]);
+        assert_eq!(w.row(0).iter().copied().collect::<Vec<_>>(), vec![2.0, 2.0]);
+        assert_eq!(w[(1, 1)], 1.0);
+        assert_eq!(w[(2, 0)], 6.0);
+        assert_eq!(hcat(&[], 6).shape(), (6, 0));
+    }
+}
