@@ -8,6 +8,7 @@
 //! | [`rig`] | rig files: chain, limits, calibration settings, instrument |
 //! | [`kinematics`] | the [`kinematics::Robot`] trait (pose map and measured point), serial chains, error parameters, IK |
 //! | [`recording`] | measurement recordings and their sidecar |
+//! | [`stats`] | distribution functions (F, χ²₃, erfc) and robust scales (median, MAD) |
 //! | [`identification`] | identifiability, least squares, registration |
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
 //! | [`model`] | the versioned model file |
@@ -33,5 +34,6 @@ pub mod report;
 pub mod reproduce;
 pub mod rig;
 pub mod session;
+pub mod stats;
 pub mod transports;
 pub mod world;

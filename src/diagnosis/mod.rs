@@ -1,20 +1,27 @@
 //! Diagnosis: what physics the nominal (geometric) model leaves out of a recording.
 //!
-//! Steps (issue 4/7, conventions §1 and §9):
+//! Steps (issue 4/7, conventions §1 and §9), one module per stage, run in order by
+//! [`pipeline::run`]:
 //! 1. fit the standard model: the identifiable geometric parameters (the registration is part of
 //!    them, so a registration offset is absorbed and never named);
-//! 2. decide whether a mismatch remains: a lack-of-fit F-test against the pure error of repeated
-//!    poses ([`noise`]) together with the best single candidate's partial F-test, Bonferroni
-//!    corrected, α = 0.01 overall;
+//! 2. screen ([`screen`]): the standard model as the tests see it, the noise floor from pure
+//!    error ([`noise`]) and the lack-of-fit F-test of the geometry; a mismatch remains when that
+//!    test or the naming below finds one, Bonferroni corrected, α = 0.01 overall;
 //! 3. locate it ([`report::locate`]): axis, joint ranges, correlation with joint angle, approach
 //!    direction, time, table coordinate, gravity torque;
 //! 4. name it ([`select`]): candidates from the library (one file each) projected onto the
 //!    orthogonal complement of the geometric Jacobian, forward selection with partial F-tests;
-//! 5. refit with the chosen effects and report RMS before/after on the fitted and held-out data,
-//!    per effect the share the geometry absorbed and the held-out RMS with and without it;
-//! 6. test what is left against flexible unnamed bases and report `unexplained` when it matters;
-//! 7. judge outliers against the final model ([`crate::identification::outliers`]), remove them
-//!    and diagnose again without them, naming each with its seq, line and size.
+//! 5. refit with the chosen effects ([`refit`]) and report each effect ([`effects`]): RMS
+//!    before/after on the fitted and held-out data ([`heldout`]), per effect the share the
+//!    geometry absorbed and the held-out RMS with and without it;
+//! 6. test what is left against flexible unnamed bases ([`unnamed`]) and report `unexplained`
+//!    when it matters;
+//! 7. judge outliers against the final model ([`outliers`], with
+//!    [`crate::identification::outliers`]), remove them and diagnose again without them, naming
+//!    each with its seq, line and size.
+//!
+//! The regression algebra the stages share is in [`linalg`], the distribution functions in
+//! [`crate::stats`].
 //!
 //! Without enough repeated poses (tracker recordings of 40–60 postures) the noise floor is the
 //! residual variance and every term is tested against it; the report says which method it used,
@@ -32,14 +39,21 @@
 pub mod backlash;
 pub mod compliance;
 pub mod drift;
+pub mod effects;
+pub mod heldout;
+pub mod linalg;
 pub mod noise;
+pub mod outliers;
+pub mod pipeline;
 pub mod plots;
+pub mod refit;
 pub mod report;
+pub mod screen;
 pub mod select;
-pub mod stats;
 pub mod table_scale;
 pub mod table_squareness;
 pub mod transmission;
+pub mod unnamed;
 
 pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
 
@@ -588,7 +602,7 @@ pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, Di
                 Ok((d, g, r))
             })
             .collect::<Result<Vec<_>, DiagnoseError>>()?;
-        let (mut report, found) = select::run(&std, &lib, &heldout)?;
+        let (mut report, found) = pipeline::run(&std, &lib, &heldout)?;
         if found.is_empty() || round + 1 == OUTLIER_ROUNDS {
             if !found.is_empty() {
                 report.notes.push(format!(

@@ -10,8 +10,8 @@
 //!
 //! [`MIN_PURE_ERROR_DOF`]: super::MIN_PURE_ERROR_DOF
 
-use super::stats::f_sf;
 use super::Data;
+use crate::stats::f_sf;
 use nalgebra::{DVector, Vector3};
 use std::collections::BTreeMap;
 

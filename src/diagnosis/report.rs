@@ -175,58 +175,118 @@ pub fn locate(d: &Data, r: &DVector<f64>, what: &str) -> WhereReport {
         .map(|i| r[3 * i].powi(2) + r[3 * i + 1].powi(2) + r[3 * i + 2].powi(2))
         .collect();
     let overall = (norm2.iter().sum::<f64>() / n.max(1) as f64).sqrt();
-    let joints = d.chain.joints();
-    let unit = |j: usize, v: f64| match joints[j].kind {
-        JointKind::Revolute => v.to_degrees(),
-        JointKind::Prismatic => v,
-    };
-    // Joint bins: the joint whose binned RMS varies most.
-    const BINS: usize = 6;
-    let mut best: Option<(usize, f64, [f64; 2], f64)> = None;
+    // The joint the residual depends on most.
+    let mut best: Option<JointRange> = None;
     for &j in &d.moving {
-        let q: Vec<f64> = d.obs.iter().map(|o| o.q[j]).collect();
-        let lo = q.iter().copied().fold(f64::MAX, f64::min);
-        let hi = q.iter().copied().fold(f64::MIN, f64::max);
-        let w = (hi - lo) / BINS as f64;
-        let mut ss = [0.0; BINS];
-        let mut cnt = [0usize; BINS];
-        for (i, v) in q.iter().enumerate() {
-            let b = (((v - lo) / w) as usize).min(BINS - 1);
-            ss[b] += norm2[i];
-            cnt[b] += 1;
-        }
-        let rms: Vec<f64> = (0..BINS)
-            .map(|b| {
-                if cnt[b] > 0 {
-                    (ss[b] / cnt[b] as f64).sqrt()
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let top = (0..BINS)
-            .max_by(|&a, &b| rms[a].total_cmp(&rms[b]))
-            .unwrap_or(0);
-        let min = rms
-            .iter()
-            .copied()
-            .filter(|v| *v > 0.0)
-            .fold(f64::MAX, f64::min);
-        let spread = (rms[top] - min) / overall.max(1e-300);
-        let (mut a, mut b) = (top, top);
-        while a > 0 && rms[a - 1] >= overall {
-            a -= 1;
-        }
-        while b + 1 < BINS && rms[b + 1] >= overall {
-            b += 1;
-        }
-        let range = [unit(j, lo + a as f64 * w), unit(j, lo + (b + 1) as f64 * w)];
-        if best.as_ref().is_none_or(|x| spread > x.1) {
-            best = Some((j, spread, range, rms[top]));
+        let c = joint_range(d, j, &norm2, overall);
+        if best.as_ref().is_none_or(|b| c.spread > b.spread) {
+            best = Some(c);
         }
     }
     // Correlations of the largest axis's residual with the features.
     let ra: Vec<f64> = (0..n).map(|i| r[3 * i + axis]).collect();
+    let corr = strongest_correlations(&ra, features(d));
+    let mut ranges = vec![None; d.chain.joints().len()];
+    let mut desc = format!(
+        "{what}: RMS {overall:.4} mm, largest along {} ({:.4} mm)",
+        AXES[axis], axis_rms[axis]
+    );
+    if let Some(best) = best {
+        ranges[best.joint] = Some(best.range);
+        let _ = write!(
+            desc,
+            "; largest for joint {} in [{:.0}, {:.0}] (RMS {:.4} mm there)",
+            best.joint + 1,
+            best.range[0],
+            best.range[1],
+            best.top_rms
+        );
+    }
+    if let Some((name, c)) = corr.first() {
+        let _ = write!(
+            desc,
+            "; {} residual correlates most with {name} (r = {c:.2})",
+            AXES[axis]
+        );
+    }
+    WhereReport {
+        description: desc,
+        joint_ranges_deg: ranges,
+        axis: AXES[axis].to_string(),
+        correlates_with: corr,
+    }
+}
+
+/// Bins of a joint's range in [`locate`].
+const BINS: usize = 6;
+
+/// Where along one joint's range a residual is largest.
+#[derive(Debug, Clone, Copy)]
+struct JointRange {
+    /// The joint (0-based).
+    joint: usize,
+    /// (largest − smallest non-empty bin RMS) ÷ overall RMS: how much the residual depends on
+    /// this joint.
+    spread: f64,
+    /// The contiguous bins around the largest whose RMS reaches the overall RMS (degrees, or mm
+    /// for a prismatic joint).
+    range: [f64; 2],
+    /// RMS in the largest bin (mm).
+    top_rms: f64,
+}
+
+/// Joint `j`'s range binned in [`BINS`]; `norm2` the squared 3-D residual per measurement.
+fn joint_range(d: &Data, j: usize, norm2: &[f64], overall: f64) -> JointRange {
+    let unit = |v: f64| match d.chain.joints()[j].kind {
+        JointKind::Revolute => v.to_degrees(),
+        JointKind::Prismatic => v,
+    };
+    let q: Vec<f64> = d.obs.iter().map(|o| o.q[j]).collect();
+    let lo = q.iter().copied().fold(f64::MAX, f64::min);
+    let hi = q.iter().copied().fold(f64::MIN, f64::max);
+    let w = (hi - lo) / BINS as f64;
+    let mut ss = [0.0; BINS];
+    let mut cnt = [0usize; BINS];
+    for (i, v) in q.iter().enumerate() {
+        let b = (((v - lo) / w) as usize).min(BINS - 1);
+        ss[b] += norm2[i];
+        cnt[b] += 1;
+    }
+    let rms: Vec<f64> = (0..BINS)
+        .map(|b| {
+            if cnt[b] > 0 {
+                (ss[b] / cnt[b] as f64).sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let top = (0..BINS)
+        .max_by(|&a, &b| rms[a].total_cmp(&rms[b]))
+        .unwrap_or(0);
+    let min = rms
+        .iter()
+        .copied()
+        .filter(|v| *v > 0.0)
+        .fold(f64::MAX, f64::min);
+    let (mut a, mut b) = (top, top);
+    while a > 0 && rms[a - 1] >= overall {
+        a -= 1;
+    }
+    while b + 1 < BINS && rms[b + 1] >= overall {
+        b += 1;
+    }
+    JointRange {
+        joint: j,
+        spread: (rms[top] - min) / overall.max(1e-300),
+        range: [unit(lo + a as f64 * w), unit(lo + (b + 1) as f64 * w)],
+        top_rms: rms[top],
+    }
+}
+
+/// What a residual may correlate with, per measurement: each moving joint's angle, approach
+/// direction and gravity torque, time, and the table coordinates.
+fn features(d: &Data) -> Vec<(String, Vec<f64>)> {
     let mut feats: Vec<(String, Vec<f64>)> = Vec::new();
     for &j in &d.moving {
         feats.push((
@@ -253,134 +313,31 @@ pub fn locate(d: &Data, r: &DVector<f64>, what: &str) -> WhereReport {
             feats.push((format!("table {name}"), t.iter().map(|v| v[a]).collect()));
         }
     }
+    feats
+}
+
+/// The three features correlating most (by |r|) with `ra`.
+fn strongest_correlations(ra: &[f64], feats: Vec<(String, Vec<f64>)>) -> Vec<(String, f64)> {
     let mut corr: Vec<(String, f64)> = feats
         .into_iter()
         .map(|(name, v)| {
-            let c = pearson(&ra, &v);
+            let c = pearson(ra, &v);
             (name, c)
         })
         .filter(|(_, c)| c.is_finite())
         .collect();
     corr.sort_by(|a, b| b.1.abs().total_cmp(&a.1.abs()));
     corr.truncate(3);
-    let mut ranges = vec![None; joints.len()];
-    let mut desc = format!(
-        "{what}: RMS {overall:.4} mm, largest along {} ({:.4} mm)",
-        AXES[axis], axis_rms[axis]
-    );
-    if let Some((j, _, range, top)) = best {
-        ranges[j] = Some(range);
-        let _ = write!(
-            desc,
-            "; largest for joint {} in [{:.0}, {:.0}] (RMS {:.4} mm there)",
-            j + 1,
-            range[0],
-            range[1],
-            top
-        );
-    }
-    if let Some((name, c)) = corr.first() {
-        let _ = write!(
-            desc,
-            "; {} residual correlates most with {name} (r = {c:.2})",
-            AXES[axis]
-        );
-    }
-    WhereReport {
-        description: desc,
-        joint_ranges_deg: ranges,
-        axis: AXES[axis].to_string(),
-        correlates_with: corr,
-    }
+    corr
 }
 
 impl Report {
     /// The report as terminal text.
     pub fn text(&self) -> String {
         let mut s = String::new();
-        let m = &self.mismatch;
-        let _ = writeln!(
-            s,
-            "geometric fit: {} measurements, {} parameters; residual RMS {:.4} mm",
-            self.fit.measurements, self.fit.geometric_parameters, m.rms_mm
-        );
-        let _ = writeln!(
-            s,
-            "noise floor: {:.4} mm (3-D RMS), method {}: from {}",
-            m.noise_floor_mm, m.noise_floor_method, m.noise_source
-        );
-        if let Some(p) = m.lack_of_fit_p {
-            let _ = writeln!(s, "lack-of-fit test of the geometric model: p = {p:.2e}");
-        }
-        if let (Some(c), Some(p)) = (&m.best_candidate, m.best_candidate_p) {
-            let _ = writeln!(
-                s,
-                "best single candidate: {c} (p = {p:.2e} before Bonferroni)"
-            );
-        }
-        if !m.significant {
-            let _ = writeln!(
-                s,
-                "no significant mismatch: the geometric model explains the recording down to the noise; nothing to name"
-            );
-        } else {
-            let _ = writeln!(s, "significant mismatch remains after the geometric fit");
-            for w in &m.where_ {
-                let _ = writeln!(s, "  where: {}", w.description);
-            }
-        }
+        self.mismatch_text(&mut s);
         for e in &self.effects {
-            let idx = match (&e.joint, &e.axis, &e.axes) {
-                (Some(j), _, _) => format!("joint {j}"),
-                (_, Some(a), _) => format!("axis {a}"),
-                (_, _, Some(p)) => format!("axes {}–{}", p[0], p[1]),
-                _ => String::new(),
-            };
-            let order = e.order.map(|o| format!(" (order {o})")).unwrap_or_default();
-            let _ = writeln!(
-                s,
-                "effect: {}{} on {}: {:.4} ± {:.4} mm RMS, {:.0} % visible to the geometry, p = {:.1e}",
-                e.kind,
-                order,
-                idx,
-                e.size_mm,
-                e.size_sigma_mm,
-                100.0 * e.visible_fraction,
-                e.p_value
-            );
-            let _ = writeln!(s, "  {}", e.explanation);
-            let _ = writeln!(
-                s,
-                "  the geometric parameters absorbed {:.0} % of it",
-                100.0 * e.absorbed_fraction
-            );
-            if let (Some(w), Some(wo)) = (e.heldout_rms_with_mm, e.heldout_rms_without_mm) {
-                let _ = writeln!(
-                    s,
-                    "  held-out RMS {wo:.4} mm without it, {w:.4} mm with it ({:+.4} mm)",
-                    w - wo
-                );
-            }
-            for (k, v) in &e.params {
-                match e.params_sigma.get(k) {
-                    Some(sd) => {
-                        let _ = writeln!(s, "  {k} = {v:.5} ± {sd:.5}");
-                    }
-                    None => {
-                        let _ = writeln!(s, "  {k} = {v:.5}");
-                    }
-                }
-            }
-            if !e.not_separable_from.is_empty() {
-                let _ = writeln!(
-                    s,
-                    "  {}{} on {} or {}: not separable with these poses",
-                    e.kind,
-                    order,
-                    idx,
-                    e.not_separable_from.join(" or ")
-                );
-            }
+            e.write_text(&mut s);
         }
         if self.unexplained {
             let _ = writeln!(s, "unexplained: a significant structured residual remains that no known effect explains");
@@ -416,5 +373,98 @@ impl Report {
             );
         }
         s
+    }
+
+    /// The geometric fit, the noise floor and the mismatch test, as text.
+    fn mismatch_text(&self, s: &mut String) {
+        let m = &self.mismatch;
+        let _ = writeln!(
+            s,
+            "geometric fit: {} measurements, {} parameters; residual RMS {:.4} mm",
+            self.fit.measurements, self.fit.geometric_parameters, m.rms_mm
+        );
+        let _ = writeln!(
+            s,
+            "noise floor: {:.4} mm (3-D RMS), method {}: from {}",
+            m.noise_floor_mm, m.noise_floor_method, m.noise_source
+        );
+        if let Some(p) = m.lack_of_fit_p {
+            let _ = writeln!(s, "lack-of-fit test of the geometric model: p = {p:.2e}");
+        }
+        if let (Some(c), Some(p)) = (&m.best_candidate, m.best_candidate_p) {
+            let _ = writeln!(
+                s,
+                "best single candidate: {c} (p = {p:.2e} before Bonferroni)"
+            );
+        }
+        if !m.significant {
+            let _ = writeln!(
+                s,
+                "no significant mismatch: the geometric model explains the recording down to the noise; nothing to name"
+            );
+        } else {
+            let _ = writeln!(s, "significant mismatch remains after the geometric fit");
+            for w in &m.where_ {
+                let _ = writeln!(s, "  where: {}", w.description);
+            }
+        }
+    }
+}
+
+impl EffectReport {
+    /// Appends this effect as text.
+    fn write_text(&self, s: &mut String) {
+        let e = self;
+        let idx = match (&e.joint, &e.axis, &e.axes) {
+            (Some(j), _, _) => format!("joint {j}"),
+            (_, Some(a), _) => format!("axis {a}"),
+            (_, _, Some(p)) => format!("axes {}–{}", p[0], p[1]),
+            _ => String::new(),
+        };
+        let order = e.order.map(|o| format!(" (order {o})")).unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "effect: {}{} on {}: {:.4} ± {:.4} mm RMS, {:.0} % visible to the geometry, p = {:.1e}",
+            e.kind,
+            order,
+            idx,
+            e.size_mm,
+            e.size_sigma_mm,
+            100.0 * e.visible_fraction,
+            e.p_value
+        );
+        let _ = writeln!(s, "  {}", e.explanation);
+        let _ = writeln!(
+            s,
+            "  the geometric parameters absorbed {:.0} % of it",
+            100.0 * e.absorbed_fraction
+        );
+        if let (Some(w), Some(wo)) = (e.heldout_rms_with_mm, e.heldout_rms_without_mm) {
+            let _ = writeln!(
+                s,
+                "  held-out RMS {wo:.4} mm without it, {w:.4} mm with it ({:+.4} mm)",
+                w - wo
+            );
+        }
+        for (k, v) in &e.params {
+            match e.params_sigma.get(k) {
+                Some(sd) => {
+                    let _ = writeln!(s, "  {k} = {v:.5} ± {sd:.5}");
+                }
+                None => {
+                    let _ = writeln!(s, "  {k} = {v:.5}");
+                }
+            }
+        }
+        if !e.not_separable_from.is_empty() {
+            let _ = writeln!(
+                s,
+                "  {}{} on {} or {}: not separable with these poses",
+                e.kind,
+                order,
+                idx,
+                e.not_separable_from.join(" or ")
+            );
+        }
     }
 }

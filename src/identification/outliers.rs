@@ -22,7 +22,7 @@
 //! diagnose` refits the kinematics with the effects it has named (diagnose first, then judge
 //! outliers: a row a diagnosed effect explains is never one).
 
-use crate::diagnosis::stats::f_sf;
+use crate::stats::{chi2_3_isf, f_sf, mad_sigma};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
@@ -89,71 +89,6 @@ pub enum OutlierError<E: std::error::Error + 'static> {
     /// The refit failed.
     #[error(transparent)]
     Fit(E),
-}
-
-/// Upper tail of χ² with 3 degrees of freedom: erfc(√(x/2)) + √(2x/π)·e^(−x/2).
-pub fn chi2_3_sf(x: f64) -> f64 {
-    if x <= 0.0 {
-        return 1.0;
-    }
-    erfc((x / 2.0).sqrt()) + (2.0 * x / std::f64::consts::PI).sqrt() * (-x / 2.0).exp()
-}
-
-/// Complementary error function (Numerical Recipes' erfcc; relative error below 1.2e-7).
-fn erfc(x: f64) -> f64 {
-    let z = x.abs();
-    let t = 1.0 / (1.0 + 0.5 * z);
-    let r = t
-        * (-z * z - 1.265_512_23
-            + t * (1.000_023_68
-                + t * (0.374_091_96
-                    + t * (0.096_784_18
-                        + t * (-0.186_288_06
-                            + t * (0.278_868_07
-                                + t * (-1.135_203_98
-                                    + t * (1.488_515_87
-                                        + t * (-0.822_152_23 + t * 0.170_872_77)))))))))
-            .exp();
-    if x >= 0.0 {
-        r
-    } else {
-        2.0 - r
-    }
-}
-
-/// The χ²(3) quantile with upper tail `p` (bisection).
-pub fn chi2_3_isf(p: f64) -> f64 {
-    let (mut lo, mut hi) = (0.0, 1000.0);
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if chi2_3_sf(mid) > p {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-    }
-    0.5 * (lo + hi)
-}
-
-/// σ per coordinate from the median absolute deviation of every coordinate of `r` (mm).
-pub fn mad_sigma(r: &[Vector3<f64>]) -> f64 {
-    let mut v: Vec<f64> = r.iter().flat_map(|x| x.iter().copied()).collect();
-    if v.is_empty() {
-        return 0.0;
-    }
-    let med = median(&mut v);
-    let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
-    1.4826 * median(&mut dev)
-}
-
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
 }
 
 /// Finds and removes outliers. `refit(kept)` fits the model on the rows `kept` (indices into
@@ -238,15 +173,6 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn chi2_3_tail_matches_tables() {
-        // χ²₃: P(X > 7.815) = 0.05, P(X > 11.345) = 0.01, P(X > 16.266) = 0.001.
-        assert!((chi2_3_sf(7.815) - 0.05).abs() < 1e-4);
-        assert!((chi2_3_sf(11.345) - 0.01).abs() < 1e-5);
-        assert!((chi2_3_sf(16.266) - 0.001).abs() < 1e-6);
-        assert!((chi2_3_isf(0.01) - 11.345).abs() < 1e-2);
-    }
 
     #[test]
     fn a_mean_model_finds_the_planted_rows() {

@@ -1,4 +1,4 @@
-//! The effect interface: one trait with three hooks, a parse context and the registry.
+//! The effect interface: one trait with three hooks and the context a parser gets.
 //!
 //! An effect perturbs the truth in one or more of three places:
 //! - **joint space**: the actual joint angles differ from the commanded ones
@@ -8,7 +8,8 @@
 //! - **the table**: the map from table readings to true world positions ([`Effect::distort_table`]).
 //!
 //! Adding an effect means one new file with a type implementing [`Effect`] and a `parse`
-//! function, plus one line in [`REGISTRY`].
+//! function, plus one line in the registry ([`super::registry::REGISTRY`]), which knows every
+//! effect; no effect knows the registry.
 //!
 //! Units: radians and millimetres inside; scenario files give degrees and millimetres.
 
@@ -20,7 +21,6 @@ use nalgebra::{Isometry3, Matrix3, Vector3};
 use serde::de::DeserializeOwned;
 use std::fmt;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 /// What a joint-space effect sees when the arm is commanded somewhere.
 #[derive(Debug, Clone, Copy)]
@@ -187,45 +187,6 @@ pub fn axis_index(ctx: &ParseCtx<'_>, sub: &str, name: &str) -> Result<usize, Sc
         "y" => Ok(1),
         "z" => Ok(2),
         other => Err(ctx.invalid(sub, format!("`{other}` is not an axis (x, y or z)"))),
-    }
-}
-
-/// Parses one effect's table.
-pub type ParseFn = fn(&ParseCtx<'_>, &toml::Table) -> Result<Arc<dyn Effect>, ScenarioError>;
-
-/// Every effect kind a scenario may name, with its parser.
-pub const REGISTRY: &[(&str, ParseFn)] = &[
-    ("trig_joint_errors", super::trig_joint::parse),
-    ("joint_compliance", super::compliance::parse),
-    ("backlash", super::backlash::parse),
-    ("transmission_error", super::transmission::parse),
-    ("thermal_drift", super::drift::parse),
-    ("table_scale", super::table::parse_scale),
-    ("table_squareness", super::table::parse_squareness),
-    (
-        "registration_offset",
-        super::table::parse_registration_offset,
-    ),
-];
-
-/// Parses one `[[effects]]` entry by its `kind`.
-pub fn parse_effect(
-    ctx: &ParseCtx<'_>,
-    table: &toml::Table,
-) -> Result<Arc<dyn Effect>, ScenarioError> {
-    let kinds: Vec<&str> = REGISTRY.iter().map(|(k, _)| *k).collect();
-    let Some(kind) = table.get("kind") else {
-        return Err(ctx.invalid(".kind", format!("missing; one of {}", kinds.join(", "))));
-    };
-    let Some(kind) = kind.as_str() else {
-        return Err(ctx.invalid(".kind", "must be a string"));
-    };
-    match REGISTRY.iter().find(|(k, _)| *k == kind) {
-        Some((_, parse)) => parse(ctx, table),
-        None => Err(ctx.invalid(
-            ".kind",
-            format!("unknown effect kind `{kind}`; known: {}", kinds.join(", ")),
-        )),
     }
 }
 

@@ -26,6 +26,7 @@ mod effect;
 mod geometric;
 mod instrument;
 mod paper;
+mod registry;
 mod scenario;
 mod table;
 mod transmission;
@@ -34,13 +35,14 @@ mod trig_joint;
 pub use backlash::Backlash;
 pub use compliance::{JointCompliance, PointMass, G};
 pub use drift::{DriftTarget, ThermalDrift};
-pub use effect::{axis_index, parse_effect, Effect, JointContext, ParseCtx, TableMap, REGISTRY};
+pub use effect::{axis_index, Effect, JointContext, ParseCtx, TableMap};
 pub use geometric::{identifiable, paper_geometric_errors, Distribution};
 pub use instrument::{
     count_of, offset_of, panel_report, pin_angle_ok, within_travel, Draws, MeasurementSettings,
     MissReason, Touch,
 };
 pub use paper::{error_split, fig6_path, ErrorSplit};
+pub use registry::{parse_effect, ParseFn, REGISTRY};
 pub use scenario::{Scenario, ScenarioError};
 pub use table::{RegistrationOffset, TableScale, TableSquareness};
 pub use transmission::{Harmonic, TransmissionError};

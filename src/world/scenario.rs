@@ -11,7 +11,7 @@
 //! random = { length_mm = 0.4, angle_deg = 0.05, distribution = "signs" }
 //!
 //! [[effects]]
-//! kind = "backlash"                          # see effect::REGISTRY for every kind
+//! kind = "backlash"                          # see registry::REGISTRY for every kind
 //! joint = 2
 //! lost_motion_deg = 0.02
 //!
@@ -23,9 +23,10 @@
 //! seconds_per_point = 5.0
 //! ```
 
-use super::effect::{parse_effect, Effect, ParseCtx};
+use super::effect::{Effect, ParseCtx};
 use super::geometric::{self, RawGeometric};
 use super::instrument::MeasurementSettings;
+use super::registry::parse_effect;
 use super::World;
 use crate::kinematics::ErrorParams;
 use crate::rig::{Instrument, Rig, RigError};

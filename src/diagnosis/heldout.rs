@@ -1,0 +1,105 @@
+//! Held-out RMS of a model (geometry with some of the chosen effects): fitted on the training
+//! part and evaluated on the rest — the `--heldout` recordings when given, else 2 of 8 whole
+//! time blocks of the recording itself.
+//!
+//! Units: 3-D RMS in mm.
+
+use super::linalg::{hcat, lstsq, rms3, rows_of, rows_of_vector};
+use super::select::Chosen;
+use super::{Candidate, Data, Standard};
+use nalgebra::{DMatrix, DVector};
+
+/// Fewer measurements than this leave no held-out split of the recording itself.
+const MIN_FOR_SPLIT: usize = 80;
+
+/// A held-out recording at the fitted geometry: its data, geometric Jacobian and residual.
+pub type HeldoutRecording = (Data, DMatrix<f64>, DVector<f64>);
+
+/// Held-out RMS before (geometry only) and after (geometry and the effects).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Heldout {
+    /// Geometry only (mm); None without a held-out part.
+    pub before: Option<f64>,
+    /// Geometry and the effects (mm); None without a held-out part.
+    pub after: Option<f64>,
+    /// What was held out, in words.
+    pub what: String,
+}
+
+/// Held-out RMS before and after adding `chosen` to the geometry, both fitted on the training
+/// part.
+pub fn heldout_rms(
+    std: &Standard,
+    chosen: &[&Chosen],
+    lib: &[Box<dyn Candidate>],
+    heldout: &[HeldoutRecording],
+) -> Heldout {
+    let mut a_cols = vec![std.jacobian.clone()];
+    a_cols.extend(chosen.iter().map(|c| c.x.clone()));
+    let a_all = hcat(&a_cols, 3 * std.data.len());
+    if heldout.is_empty() {
+        time_block_split(std, &a_all)
+    } else {
+        other_recordings(std, &a_all, chosen, lib, heldout)
+    }
+}
+
+/// Fitted on the whole recording, evaluated on the held-out recordings (each effect's columns
+/// rebuilt on them; zero where a recording cannot show it).
+fn other_recordings(
+    std: &Standard,
+    a_all: &DMatrix<f64>,
+    chosen: &[&Chosen],
+    lib: &[Box<dyn Candidate>],
+    heldout: &[HeldoutRecording],
+) -> Heldout {
+    let dg = lstsq(&std.jacobian, &std.residual).solution;
+    let da = lstsq(a_all, &std.residual).solution;
+    let mut before = Vec::new();
+    let mut after = Vec::new();
+    for (hd, hg, hr) in heldout {
+        let mut cols = vec![hg.clone()];
+        for c in chosen {
+            match lib[c.cand].regressors(hd) {
+                Some(x) => cols.push(x),
+                None => cols.push(DMatrix::zeros(3 * hd.len(), c.x.ncols())),
+            }
+        }
+        let ha = hcat(&cols, 3 * hd.len());
+        before.extend((hr - hg * &dg).iter().copied());
+        after.extend((hr - ha * &da).iter().copied());
+    }
+    Heldout {
+        before: Some(rms3(&DVector::from_vec(before))),
+        after: Some(rms3(&DVector::from_vec(after))),
+        what: format!("{} held-out recording(s)", heldout.len()),
+    }
+}
+
+/// Time blocks 2 and 6 of 8 held out, fitted on the rest: whole blocks, so a slow drift cannot
+/// be interpolated from neighbouring rows.
+fn time_block_split(std: &Standard, a_all: &DMatrix<f64>) -> Heldout {
+    let n = std.data.len();
+    if n < MIN_FOR_SPLIT {
+        return Heldout {
+            before: None,
+            after: None,
+            what: "too few measurements for a held-out split".into(),
+        };
+    }
+    let block = |i: usize| i * 8 / n;
+    let (test, train): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| matches!(block(i), 1 | 5));
+    let rt = rows_of_vector(&std.residual, &train);
+    let rh = rows_of_vector(&std.residual, &test);
+    let gt = rows_of(&std.jacobian, &train);
+    let gh = rows_of(&std.jacobian, &test);
+    let at = rows_of(a_all, &train);
+    let ah = rows_of(a_all, &test);
+    let dg = lstsq(&gt, &rt).solution;
+    let da = lstsq(&at, &rt).solution;
+    Heldout {
+        before: Some(rms3(&(&rh - gh * dg))),
+        after: Some(rms3(&(&rh - ah * da))),
+        what: "time blocks 2 and 6 of 8 held out, fitted on the rest".into(),
+    }
+}

@@ -1,0 +1,163 @@
+//! One round of the diagnosis on a standard fit (steps 2 to 7 of the module documentation of
+//! [`super`]): screen → select → what is left → refit → effects → outliers, then the report.
+//!
+//! Error budget, α = [`ALPHA`](super::ALPHA) overall, split in three equal parts
+//! ([`ALPHA_PART`](super::screen::ALPHA_PART)): the candidate steps (Bonferroni over the
+//! candidates remaining at each step), the unnamed bases (Bonferroni over the bases) and the
+//! final lack-of-fit test against pure error.
+//!
+//! Units: stacked residuals in mm (3 rows per measurement); coefficients in each candidate's
+//! units (see the candidate files).
+
+use super::effects::{describe_effects, EffectInputs};
+use super::heldout::{Heldout, HeldoutRecording};
+use super::linalg::rms3;
+use super::outliers::judge_outliers;
+use super::refit::{refit, Refit};
+use super::report::{locate, FitSummary, Mismatch, Report, WhereReport};
+use super::screen::{mismatch_remains, screen, Screen};
+use super::select::{forward_selection, project_candidates, Selection};
+use super::unnamed::{test_leftover, Leftover};
+use super::{Candidate, DiagnoseError, Standard, MIN_PURE_ERROR_DOF};
+use crate::identification::outliers::Outlier;
+
+/// Runs one round on a standard fit. `heldout`: each held-out recording at the fitted
+/// geometry. Returns the report (without `outliers`: the caller fills in what it removed) and
+/// the rows that fail the outlier test against the final model (the caller removes them and
+/// runs again).
+pub fn run(
+    std: &Standard,
+    lib: &[Box<dyn Candidate>],
+    heldout: &[HeldoutRecording],
+) -> Result<(Report, Vec<Outlier>), DiagnoseError> {
+    let screen = screen(std)?;
+    let candidates = project_candidates(&screen, lib, &std.data);
+    let selection = forward_selection(&screen, &candidates);
+    let leftover = test_leftover(std, &screen, &selection);
+    let significant = mismatch_remains(&screen, &selection, &leftover);
+    let refit = refit(std, &screen, &selection);
+    let inputs = EffectInputs {
+        std,
+        screen: &screen,
+        candidates: &candidates,
+        selection: &selection,
+        refit: &refit,
+    };
+    let effects = describe_effects(&inputs, lib, heldout);
+    let mut notes = notes(std);
+    let outliers = match judge_outliers(std, &refit) {
+        Ok(found) => found,
+        Err(e) => {
+            notes.push(format!("outliers not removed: {e}"));
+            Vec::new()
+        }
+    };
+    let report = Report {
+        notes,
+        outliers: Vec::new(),
+        mismatch: mismatch(std, &screen, &selection, &refit, lib, significant),
+        unexplained: leftover.unexplained(),
+        unexplained_where: unexplained_where(std, &leftover),
+        effects: effects.reports,
+        absorbed: candidates.absorbed,
+        fit: fit_summary(std, &screen, &refit, effects.heldout),
+    };
+    Ok((report, outliers))
+}
+
+/// How the diagnosis read this recording.
+fn notes(std: &Standard) -> Vec<String> {
+    let mut notes = vec![
+        "approach directions were taken from row order: each joint's direction is the sign of its change from the previous row, measured or not (carried over when unchanged)".to_string(),
+    ];
+    if std.data.t_s.is_none() {
+        notes.push(
+            "the recording has no t_s on every measured row: time-dependent effects (thermal drift, time trends) were not considered".into(),
+        );
+    }
+    if let Some(n) = &std.instrument_note {
+        notes.push(n.clone());
+    }
+    notes
+}
+
+/// The mismatch test's figures, and where the mismatch is when it is `significant`.
+fn mismatch(
+    std: &Standard,
+    screen: &Screen,
+    sel: &Selection,
+    refit: &Refit,
+    lib: &[Box<dyn Candidate>],
+    significant: bool,
+) -> Mismatch {
+    let pe = &screen.pure_error;
+    let (method, source) = if screen.use_pure_error {
+        (
+            "pure_error",
+            format!(
+                "pure error of {} repeated poses ({} dof)",
+                pe.groups, pe.dof
+            ),
+        )
+    } else {
+        (
+            "residual_variance",
+            format!(
+                "residual variance after the final model ({} dof): fewer than {MIN_PURE_ERROR_DOF} dof of repeated poses ({}), so per-term tests only",
+                refit.dof, pe.dof
+            ),
+        )
+    };
+    let where_ = if significant {
+        vec![locate(
+            &std.data,
+            &screen.residual_raw,
+            "what the geometric model leaves",
+        )]
+    } else {
+        Vec::new()
+    };
+    Mismatch {
+        significant,
+        rms_mm: rms3(&screen.residual_raw),
+        noise_floor_mm: refit.noise_floor,
+        noise_floor_method: method.into(),
+        noise_source: source,
+        lack_of_fit_p: screen.lack_of_fit_p,
+        best_candidate: sel.first_best.map(|(k, _)| lib[k].label()),
+        best_candidate_p: sel.first_best.map(|(_, p)| p),
+        where_,
+    }
+}
+
+/// Where the residual no named effect explains is, and what explains it, when something does.
+fn unexplained_where(std: &Standard, leftover: &Leftover) -> Vec<WhereReport> {
+    if !leftover.unexplained() {
+        return Vec::new();
+    }
+    let mut wh = locate(
+        &std.data,
+        &leftover.residual_raw,
+        "what the named effects leave",
+    );
+    let names: Vec<String> = leftover
+        .unexplained_by
+        .iter()
+        .map(|(n, p)| format!("{n} (p = {p:.1e})"))
+        .collect();
+    wh.description = format!("{}; explained by {}", wh.description, names.join(", "));
+    vec![wh]
+}
+
+/// RMS before and after, on the fitted and the held-out data.
+fn fit_summary(std: &Standard, screen: &Screen, refit: &Refit, heldout: Heldout) -> FitSummary {
+    FitSummary {
+        measurements: std.data.len(),
+        geometric_parameters: std.free.len(),
+        before_rms_mm: rms3(&screen.residual_raw),
+        after_rms_mm: rms3(&refit.residual),
+        heldout_before_rms_mm: heldout.before,
+        heldout_after_rms_mm: heldout.after,
+        heldout: heldout.what,
+    }
+}
