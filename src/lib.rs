@@ -10,12 +10,14 @@
 //! | [`recording`] | measurement recordings and their sidecar |
 //! | [`identification`] | identifiability, least squares, registration |
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
+//! | [`calibration`] | the variable D-H pipeline (division → learner → model), its evaluation along paths, the comparison with conventional and neural calibration |
 //! | [`model`] | the versioned model file |
 //! | [`neural`] | neuro-kinematic calibration (seed 001): network, schemes, the paper's robots |
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
 //! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
 //! | [`devices`] | arm, table and panel drivers, their emulators, safety wrappers, the factory |
+pub mod calibration;
 pub mod cli;
 pub mod compensation;
 pub mod devices;

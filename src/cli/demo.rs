@@ -1,4 +1,4 @@
-//! `rigcal demo`: the whole job on simulated devices, through the same commands a user types.
+//! `rigcal demo`: the whole job on simulated devices, step by step through the library.
 //!
 //! 1. A dry-run session of seed 000's simulation (`sim/paper-sim.toml`) on the ideal-instrument
 //!    rig (conventions §2): plan, drivers and emulators on the virtual clock, every row on disk.
@@ -12,11 +12,13 @@
 //!
 //! Everything goes to `--out`; `summary.txt` there repeats the closing table.
 
-use super::evaluate::{evaluate, fig6};
+use crate::calibration::{self, rig_check, CalibrationOptions, Source};
 use crate::kinematics::Robot;
-use crate::report::{joint_path, spherical_path, PathResult, PathSpec};
+use crate::model::{ModelFile, Provenance};
+use crate::recording::Recording;
+use crate::report::{PathResult, PathSpec};
 use crate::rig::Rig;
-use crate::session::read_plan;
+use crate::session::{read_plan, write_plan, SessionOptions, SessionReport};
 use anyhow::{bail, Context, Result};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -60,109 +62,50 @@ pub fn run(a: Args) -> Result<()> {
     for dir in ["paper", "rig"] {
         clear_session_dir(&out(dir))?;
     }
-    let seed = a.seed.to_string();
-
+    let (paper_rig, real_rig) = (
+        Rig::load(Path::new(PAPER_RIG))?,
+        Rig::load(Path::new(REAL_RIG))?,
+    );
     heading("1. Dry-run session: seed 000's simulation on the ideal-instrument RV-M2");
     let started = std::time::Instant::now();
-    step(
-        &[
-            "session",
-            "--rig",
-            PAPER_RIG,
-            "--sim",
-            PAPER_SCENARIO,
-            "--points",
-            &a.points.to_string(),
-            "--seed",
-            &seed,
-            "--out",
-        ],
-        &out("paper"),
-    )?;
-
+    let paper_session = DrySession::planned(PAPER_RIG, PAPER_SCENARIO, a.points, a.seed);
+    dry_session(&paper_session, &out("paper"))?;
     heading("2. Variable D-H model from the recording: division, CEPs per region, FCMAC");
-    step(
-        &[
-            "calibrate",
-            "--rig",
-            PAPER_RIG,
-            "--accuracy-mm",
-            &a.accuracy_mm.to_string(),
-            "--seed",
-            &seed,
-            "--recording",
-            &path_str(&out("paper")),
-            "--out",
-        ],
-        &out("paper-model.json"),
-    )?;
-
+    calibrate(&paper_rig, &out("paper"), &a, &out("paper-model.json"))?;
     heading("3. Evaluation along the paper's paths (true simulated arm vs target)");
-    let paper_rig = Rig::load(Path::new(PAPER_RIG))?;
     let paper_paths = vec![
-        fig6(&paper_rig, 101),
-        spherical_path(
-            &paper_rig,
-            "Fig. 7 spherical path",
-            [640.0, 20.0, 0.0],
-            [740.0, 125.0, -20.0],
-            101,
-        )?,
+        calibration::fig6_path(&paper_rig, 101),
+        calibration::fig7_path(&paper_rig, 101)?,
     ];
-    let paper_results = evaluate(
+    let traced = calibration::PAPER_TRACED_CEPS.map(String::from);
+    let paper_results = super::evaluate::evaluate(
         &out("paper-model.json"),
         Path::new(PAPER_SCENARIO),
         &paper_paths,
+        &traced,
         Some(&out("paper-plots")),
     )?;
-
     heading("4. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
-    step(
-        &[
-            "session",
-            "--rig",
-            REAL_RIG,
-            "--sim",
-            REAL_SCENARIO,
-            "--points",
-            &a.rig_points.to_string(),
-            "--seed",
-            &seed,
-            "--out",
-        ],
+    dry_session(
+        &DrySession::planned(REAL_RIG, REAL_SCENARIO, a.rig_points, a.seed),
         &out("rig"),
     )?;
     heading("5. Conventional identification from the rig recording");
-    step(
-        &[
-            "identify",
-            "--rig",
-            REAL_RIG,
-            "--recording",
-            &path_str(&out("rig")),
-            "--out",
-        ],
-        &out("rig-model.json"),
+    identify(&real_rig, &out("rig"), &out("rig-model.json"))?;
+    let planned = read_plan(&out("rig").join("plan.csv"), &real_rig)?;
+    let rig_path = rig_check::measurable_path(&real_rig, &planned, 101).context(
+        "no two planned points of the rig session are joined by a measurable straight joint path",
     )?;
-    let real_rig = Rig::load(Path::new(REAL_RIG))?;
-    let rig_path = measurable_path(&real_rig, &out("rig").join("plan.csv"))?;
     heading(&format!(
         "6. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
         rig_path.name
     ));
     let rig_results = rig_path_check(&real_rig, &out("rig-model.json"), &rig_path, &a.out)?;
     heading("7. Diagnosis: what the geometric model leaves out of the rig recording");
-    step(
-        &[
-            "diagnose",
-            "--rig",
-            REAL_RIG,
-            "--recording",
-            &path_str(&out("rig")),
-            "--plots",
-            &path_str(&out("rig-plots")),
-            "--json",
-        ],
+    diagnose(
+        &real_rig,
+        &out("rig"),
+        &out("rig-plots"),
         &out("rig-diagnosis.json"),
     )?;
 
@@ -173,10 +116,7 @@ pub fn run(a: Args) -> Result<()> {
         a.seed,
         started.elapsed().as_secs_f64()
     );
-    let _ = writeln!(
-        summary,
-        "paper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm"
-    );
+    let _ = writeln!(summary, "paper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm");
     for (spec, results) in paper_paths.iter().zip(&paper_results) {
         summary_rows(&mut summary, spec, results);
     }
@@ -189,7 +129,32 @@ pub fn run(a: Args) -> Result<()> {
     heading("Summary");
     print!("{summary}");
     let file = out("summary.txt");
-    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))?;
+    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))
+}
+
+/// Step 2: the variable D-H model from the recording in `dir`, written to `model`.
+fn calibrate(rig: &Rig, dir: &Path, a: &Args, model: &Path) -> Result<()> {
+    let rec = super::identify::read_recording(rig, dir)?;
+    let observations = super::observations(&rec);
+    let opts = CalibrationOptions {
+        accuracy_mm: a.accuracy_mm,
+        seed: a.seed,
+        ..CalibrationOptions::default()
+    };
+    let label = dir.display().to_string();
+    let calibrated = super::calibrate::with_bar(&opts, |progress| {
+        calibration::calibrate_with_progress(
+            rig,
+            Source::Offline {
+                observations: &observations,
+                label,
+            },
+            &opts,
+            progress,
+        )
+    })?;
+    calibrated.model.save(model)?;
+    println!("model written to {}", model.display());
     Ok(())
 }
 
@@ -203,85 +168,29 @@ fn rig_path_check(
     path: &PathSpec,
     out: &Path,
 ) -> Result<Vec<PathResult>> {
-    let loaded = crate::model::ModelFile::load(model_path)?;
-    let models = loaded.file.error_models(rig, model_path)?;
+    let models = ModelFile::load(model_path)?
+        .file
+        .error_models(rig, model_path)?;
     let (name, model) = models.first().context("the model file holds no model")?;
-    let nominal = crate::kinematics::ErrorParams::zeros(rig.chain.layout());
-    let targets: Vec<nalgebra::Vector3<f64>> = path
-        .points
-        .iter()
-        .map(|q| rig.chain.position(q, &nominal))
-        .collect();
-    let opts = crate::compensation::CompensationOptions::default();
-    let compensated = path
-        .points
-        .iter()
-        .zip(&targets)
-        .map(|(q, t)| {
-            crate::compensation::compensate_from(
-                &rig.chain,
-                model.as_ref(),
-                t,
-                rig.held(),
-                q.clone(),
-                &opts,
-            )
-            .map(|c| c.command)
-            .with_context(|| format!("compensating the target {t:?}"))
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let commands = rig_check::path_commands(rig, model.as_ref(), path)?;
     let mut results = Vec::new();
-    for (label, commands) in [
-        ("uncalibrated", &path.points),
-        (name.as_str(), &compensated),
+    for (label, tag, points) in [
+        ("uncalibrated", "nominal", &commands.nominal),
+        (name.as_str(), "compensated", &commands.compensated),
     ] {
-        let tag = if label == "uncalibrated" {
-            "nominal"
-        } else {
-            "compensated"
-        };
         let plan_file = out.join(format!("rig-path-{tag}.csv"));
-        let points: Vec<crate::session::PlannedPoint> = commands
-            .iter()
-            .enumerate()
-            .map(|(k, q)| crate::session::PlannedPoint {
-                point: k + 1,
-                region: "path".into(),
-                q: q.clone(),
-                table_mm: crate::session::plan::table_target(rig, q).unwrap_or_default(),
-            })
-            .collect();
-        crate::session::write_plan(&plan_file, rig, &points)?;
+        write_plan(&plan_file, rig, &rig_check::path_plan(rig, points))?;
         let dir = out.join(format!("rig-path-{tag}"));
         clear_session_dir(&dir)?;
-        step(
-            &[
-                "session",
-                "--rig",
-                REAL_RIG,
-                "--sim",
-                REAL_SCENARIO,
-                "--plan",
-                &path_str(&plan_file),
-                "--registration-from",
-                &path_str(&out.join("rig")),
-                "--out",
-            ],
-            &dir,
-        )?;
-        let rec = crate::recording::Recording::read(&dir, rig.chain.joints())?;
-        let measured: Vec<&crate::recording::Measurement> = rec
-            .rows
-            .iter()
-            .filter(|m| {
-                m.region.as_deref() == Some("path") && m.status != crate::recording::Status::Via
-            })
-            .collect();
-        let errors = measured
-            .iter()
-            .zip(&targets)
-            .map(|(m, t)| m.position.map_or(f64::NAN, |p| (p - t).norm()))
-            .collect();
+        let session = DrySession {
+            plan: Plan::File(&plan_file),
+            seed: None,
+            registration_from: Some(out.join("rig")),
+            ..DrySession::planned(REAL_RIG, REAL_SCENARIO, 0, 0)
+        };
+        dry_session(&session, &dir)?;
+        let rec = Recording::read(&dir, rig.chain.joints())?;
+        let errors = rig_check::measured_errors(&rec, &commands.targets);
         results.push(PathResult {
             model: label.to_string(),
             errors,
@@ -303,57 +212,206 @@ fn rig_path_check(
     );
     for r in &results {
         let st = r.stats();
+        let missed = r.errors.iter().filter(|e| e.is_nan()).count();
         println!(
-            "  {:<14} mean {:.4} mm   max {:.4} mm   {} point(s) not measured",
-            r.model,
-            st.mean_mm,
-            st.max_mm,
-            r.errors.iter().filter(|e| e.is_nan()).count()
+            "  {:<14} mean {:.4} mm   max {:.4} mm   {missed} point(s) not measured",
+            r.model, st.mean_mm, st.max_mm
         );
     }
     println!("  plot: {}", file.display());
-    let floor = resolution_floor(rig, &compensated);
+    let floor = rig_check::resolution_floor(rig, &commands.compensated);
     println!(
         "  the controller's {}° command resolution alone moves the compensated tip by {:.4} mm mean, {:.4} mm max: the floor of joint-command compensation on this rig",
-        rig.devices.clone().unwrap_or_default().arm.resolution_deg,
+        rig_check::resolution_deg(rig),
         floor.iter().sum::<f64>() / floor.len().max(1) as f64,
         floor.iter().copied().fold(0.0, f64::max)
     );
     Ok(results)
 }
 
-/// How far rounding each command to the arm controller's resolution moves the nominal tip (mm).
-fn resolution_floor(rig: &Rig, commands: &[Vec<f64>]) -> Vec<f64> {
-    let step = rig
-        .devices
-        .clone()
-        .unwrap_or_default()
-        .arm
-        .resolution_deg
-        .to_radians();
-    let nominal = crate::kinematics::ErrorParams::zeros(rig.chain.layout());
-    commands
-        .iter()
-        .map(|q| {
-            let rounded: Vec<f64> = q.iter().map(|v| (v / step).round() * step).collect();
-            (rig.chain.position(&rounded, &nominal) - rig.chain.position(q, &nominal)).norm()
-        })
-        .collect()
+/// What a dry-run session measures.
+enum Plan<'a> {
+    /// This many points planned here, the dropped candidates reported.
+    Points(usize),
+    /// The points of this plan file.
+    File(&'a Path),
+}
+
+/// A dry-run session as `rigcal session --sim` runs it: emulators on the virtual clock.
+struct DrySession<'a> {
+    rig: &'a str,
+    scenario: &'a str,
+    plan: Plan<'a>,
+    /// Seed of the plan and the registration (None: the scenario's).
+    seed: Option<u64>,
+    /// Reuse this session's registration instead of registering again.
+    registration_from: Option<PathBuf>,
+}
+
+impl<'a> DrySession<'a> {
+    fn planned(rig: &'a str, scenario: &'a str, points: usize, seed: u64) -> Self {
+        Self {
+            rig,
+            scenario,
+            plan: Plan::Points(points),
+            seed: Some(seed),
+            registration_from: None,
+        }
+    }
+}
+
+/// Runs a dry-run session into `dir`, printing what `rigcal session` prints. With
+/// [`print_session`], the demo's only calls into the session API.
+fn dry_session(s: &DrySession<'_>, dir: &Path) -> Result<()> {
+    use crate::session::{
+        estimate, plan, registration_points, run_session, ContactSettings, Progress, RigSpeeds,
+    };
+    let rig = Rig::load(Path::new(s.rig))?;
+    let scenario =
+        super::session::load_scenario(&rig, Path::new(s.rig), Some(Path::new(s.scenario)), None)?
+            .context("a dry run needs its scenario")?;
+    let seed = s.seed.unwrap_or(scenario.seed);
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let plan_path = dir.join("plan.csv");
+    let points = match s.plan {
+        Plan::Points(n) => {
+            let p = plan(&rig, &super::plan::options(n, 8, 50, seed))?;
+            super::plan::report_dropped(&rig, &p, &plan_path)?;
+            p.points
+        }
+        Plan::File(file) => read_plan(file, &rig)?,
+    };
+    write_plan(&plan_path, &rig, &points)?;
+    // Measured as read back from the file, as a session does.
+    let points = read_plan(&plan_path, &rig)?;
+    let mut opts = SessionOptions::new(dir);
+    opts.seed = seed;
+    let registration = match &s.registration_from {
+        Some(from) => {
+            let rec = Recording::read(from, rig.chain.joints())
+                .with_context(|| format!("reading the session {}", from.display()))?;
+            let reg = rec.session.and_then(|i| i.registration);
+            opts.registration = Some(reg.with_context(|| {
+                format!(
+                    "{}: its session.toml holds no [registration]",
+                    from.display()
+                )
+            })?);
+            Vec::new()
+        }
+        None => registration_points(&rig, opts.registration_points, seed),
+    };
+    let all = [registration, points.clone()].concat();
+    println!(
+        "{}",
+        super::plan::describe(&estimate(
+            &rig,
+            &all,
+            &RigSpeeds::of(&rig),
+            &ContactSettings::default()
+        ))
+    );
+    let (devices, world) = super::session::open_rig(&rig, Some(&scenario), false)?;
+    opts.fsync = !devices.clock.is_virtual();
+    opts.info = crate::recording::SessionInfo {
+        rig: Some(s.rig.to_string()),
+        scenario: Some(s.scenario.to_string()),
+        seed: Some(scenario.seed),
+        notes: Some(format!(
+            "rigcal session: {} points, dry run on the virtual clock",
+            points.len()
+        )),
+        ..Default::default()
+    };
+    let report = run_session(
+        &rig,
+        devices,
+        world,
+        &points,
+        opts,
+        &Progress::auto(points.len()),
+    )?;
+    print_session(dir, &report);
+    Ok(())
+}
+
+/// What `rigcal session` prints after a fresh run on the virtual clock.
+fn print_session(dir: &Path, r: &SessionReport) {
+    println!(
+        "session {}: {} points, {} measured, {} skipped, {} via rows, {} retries, {} faults cleared",
+        dir.display(), r.points, r.ok, r.skipped.len(), r.via, r.retries, r.faults_cleared.len()
+    );
+    for (p, why) in &r.skipped {
+        println!("  point {p} skipped: {why}");
+    }
+    for f in &r.faults_cleared {
+        println!("  cleared: {f}");
+    }
+    if let Some(rms) = r.registration_rms_mm {
+        println!("registration RMS {rms:.3} mm (written to session.toml)");
+    }
+    println!(
+        "rig time {:.0} s ({:.2} h) on the virtual clock: what the rig would have taken; wall time {:.2} s",
+        r.rig_time_s, r.rig_time_s / 3600.0, r.wall.as_secs_f64()
+    );
+}
+
+/// Step 5: conventional identification as `rigcal identify` prints it (the demo's one call into
+/// identification's pipeline).
+fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
+    use super::identify::{
+        identify_robust, print_fit_summary, print_outliers, read_recording, Level,
+    };
+    let rec = read_recording(rig, recording)?;
+    let (chain, result, outliers, warning) = identify_robust(rig, &rec, Level::Full)?;
+    println!(
+        "recording {}: {} rows, {} measurements used",
+        recording.display(),
+        rec.rows.len(),
+        result.after.n
+    );
+    print_outliers(&outliers);
+    print!(
+        "{}",
+        super::parameter_table(crate::kinematics::Robot::layout(&chain), &result, None)
+    );
+    print_fit_summary(&result);
+    let provenance = Provenance {
+        recording: Some(recording.display().to_string()),
+        measurements: result.after.n,
+        notes: warning,
+    };
+    let mut file = ModelFile::constant(rig, &result, provenance);
+    file.outliers = outliers;
+    file.save(out)?;
+    println!("model written to {}", out.display());
+    Ok(())
+}
+
+/// Step 7: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
+fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
+    let rec = super::identify::read_recording(rig, recording)?;
+    let report = crate::diagnosis::diagnose(
+        rig,
+        &rec,
+        &crate::diagnosis::Options {
+            heldout: Vec::new(),
+        },
+    )
+    .with_context(|| format!("diagnosing {}", recording.display()))?;
+    println!("recording {}", recording.display());
+    print!("{}", report.text());
+    std::fs::write(json, serde_json::to_string_pretty(&report)?)
+        .with_context(|| format!("writing {}", json.display()))?;
+    println!("report written to {}", json.display());
+    let written = crate::diagnosis::plots::write(rig, &rec, plots)
+        .with_context(|| format!("writing plots to {}", plots.display()))?;
+    println!("{written} plot(s) written to {}", plots.display());
+    Ok(())
 }
 
 fn heading(text: &str) {
     println!("\n== {text}");
-}
-
-fn path_str(p: &Path) -> String {
-    p.display().to_string()
-}
-
-/// Runs a subcommand whose last word is `last` (an output path).
-fn step(words: &[&str], last: &Path) -> Result<()> {
-    let mut w: Vec<String> = words.iter().map(|s| s.to_string()).collect();
-    w.push(path_str(last));
-    super::run_words(&w).with_context(|| format!("`rigcal {}`", w.join(" ")))
 }
 
 /// Removes a session directory an earlier demo wrote (it holds a journal); refuses anything else.
@@ -379,47 +437,4 @@ fn summary_rows(s: &mut String, spec: &PathSpec, results: &[PathResult]) {
         let _ = write!(s, "  {} {:.4} / {:.4}", r.model, st.mean_mm, st.max_mm);
     }
     s.push('\n');
-}
-
-/// A straight joint path of 101 points between two planned points of the rig session whose every
-/// point the rig can measure: the longest such among the first planned points.
-fn measurable_path(rig: &Rig, plan: &Path) -> Result<PathSpec> {
-    let pts: Vec<Vec<f64>> = read_plan(plan, rig)?
-        .into_iter()
-        .filter(|p| p.region != crate::session::plan::REFERENCE_REGION)
-        .take(80)
-        .map(|p| p.q)
-        .collect();
-    let nominal = crate::kinematics::ErrorParams::zeros(rig.chain.layout());
-    let joints = rig.chain.joints();
-    let mut best: Option<(f64, PathSpec)> = None;
-    for (i, a) in pts.iter().enumerate() {
-        for b in &pts[i + 1..] {
-            let length = (rig.chain.position(a, &nominal) - rig.chain.position(b, &nominal)).norm();
-            if best.as_ref().is_some_and(|(l, _)| *l >= length) {
-                continue;
-            }
-            let deg = |q: &[f64]| -> Vec<f64> {
-                rig.moving_joints()
-                    .iter()
-                    .map(|&j| joints[j].kind.to_file_units(q[j]))
-                    .collect()
-            };
-            let (da, db) = (deg(a), deg(b));
-            let fmt = |v: &[f64]| {
-                v.iter()
-                    .map(|x| format!("{x:.1}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            let name = format!("joint path ({}) → ({})", fmt(&da), fmt(&db));
-            let spec = joint_path(rig, &name, &da, &db, 101);
-            if spec.points.iter().all(|q| rig.measurable(q).is_ok()) {
-                best = Some((length, spec));
-            }
-        }
-    }
-    best.map(|(_, s)| s).context(
-        "no two planned points of the rig session are joined by a measurable straight joint path",
-    )
 }
