@@ -9,12 +9,12 @@ use crate::identification::{fit, random_poses, FitOptions, Observation};
 use crate::kinematics::{ErrorModel, ErrorParams, Robot};
 use crate::learners::LearnerKind;
 use crate::model::ModelBody;
-use crate::report::{evaluate_path, PathResult, PathSpec};
+use crate::report::{evaluate_path, plot_errors, PathResult, PathSpec};
 use crate::rig::Rig;
 use crate::world::World;
 use rand::SeedableRng;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// What the methods are fitted and checked on.
@@ -70,6 +70,34 @@ pub fn simulated_observations(rig: &Rig, world: &World, n: usize, seed: u64) -> 
         &mut rand::rngs::ChaCha8Rng::seed_from_u64(seed),
     );
     super::observations_of(&world.record(&poses, seed << 32))
+}
+
+/// The measurements of the recording at `path`, or else `n` simulated ones of `world` drawn
+/// from `seed`; with what they are.
+pub fn measurements(
+    rig: &Rig,
+    path: Option<&Path>,
+    world: Option<&World>,
+    n: usize,
+    seed: u64,
+) -> Result<(Vec<Observation>, String), CalibrationError> {
+    match (path, world) {
+        (Some(dir), _) => {
+            let rec =
+                crate::recording::Recording::read(dir, rig.chain.joints()).map_err(|source| {
+                    CalibrationError::Recording {
+                        path: dir.to_path_buf(),
+                        source,
+                    }
+                })?;
+            Ok((super::observations_of(&rec), dir.display().to_string()))
+        }
+        (None, Some(w)) => Ok((
+            simulated_observations(rig, w, n, seed),
+            format!("{n} simulated random poses"),
+        )),
+        (None, None) => Err(CalibrationError::NothingToCompare),
+    }
 }
 
 struct Method {
@@ -221,6 +249,18 @@ fn mean_max(v: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 impl Comparison {
+    /// The comparison as `rigcal compare` prints it: each model's figures, the table and what
+    /// its columns mean.
+    pub fn text(&self, accuracy_mm: f64) -> String {
+        format!(
+            "== variable D-H model (seed 000), offline division at {accuracy_mm} mm\n{}== neuro-kinematic model (seed 001)\n{}\n{}\nvalidation: {} poses; apparent = against the measurements, actual = against the simulated truth\n",
+            self.variable.text(),
+            self.neural.text(),
+            self.markdown(),
+            self.validation_points
+        )
+    }
+
     /// The comparison as a Markdown table (what `rigcal compare` prints and writes).
     pub fn markdown(&self) -> String {
         let mut md = String::new();
@@ -258,5 +298,31 @@ impl Comparison {
             md.push('\n');
         }
         md
+    }
+}
+
+impl Comparison {
+    /// Writes the table (`compare.md`) and one plot per path (`compare-PATH.svg`) into `dir`;
+    /// returns the files, plots first.
+    pub fn write_files(&self, dir: &Path) -> Result<Vec<PathBuf>, CalibrationError> {
+        let io = |path: &Path| {
+            let path = path.to_path_buf();
+            move |source| CalibrationError::Io { path, source }
+        };
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        let mut files = Vec::new();
+        for (p, res) in &self.paths {
+            let svg = dir.join(format!("compare-{p}.svg"));
+            plot_errors(
+                &svg,
+                &format!("position error along {p}: three calibrations"),
+                res,
+            )?;
+            files.push(svg);
+        }
+        let table = dir.join("compare.md");
+        std::fs::write(&table, self.markdown()).map_err(io(&table))?;
+        files.push(table);
+        Ok(files)
     }
 }

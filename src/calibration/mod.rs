@@ -21,13 +21,16 @@ pub mod rig_check;
 mod through_session;
 mod variable;
 
-pub use compare::{compare, simulated_observations, CompareInput, Comparison, MethodRow};
+pub use compare::{
+    compare, measurements, simulated_observations, CompareInput, Comparison, MethodRow,
+};
 pub use evaluate::{
     build_paths, evaluate, fig6_path, fig7_path, path_table, traced_ceps, write_path_files,
     PathChoice, PathFiles, PathOptions, TracedCep, PAPER_TRACED_CEPS,
 };
 pub use through_session::{
     planning_note, refuse_other_options, resumed_requests, through_session, PlanningFiles,
+    SessionCalibrated,
 };
 pub use variable::WorldMeasurer;
 
@@ -41,32 +44,45 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 /// Settings of a calibration; every default is the paper's (seed 000, and seed 001 for the
-/// network).
-#[derive(Debug, Clone, PartialEq)]
+/// network). As a command-line option group (`#[command(flatten)]`) it declares the settings
+/// every calibrating command shares, with these defaults; the demanded accuracy, the learner
+/// and the unmeasurable point are each command's own.
+#[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct CalibrationOptions {
     /// Division space.
+    #[arg(long = "division", value_enum, default_value_t = Space::Joint)]
     pub space: Space,
     /// Demanded accuracy after compensation (mm).
+    #[arg(skip = 0.1)]
     pub accuracy_mm: f64,
-    /// Most regions; None: the paper's cap for the space ([`Space::paper_region_cap`]).
+    /// Most regions [default: the paper's 110 for joint, 130 for Cartesian division].
+    #[arg(long)]
     pub max_regions: Option<usize>,
     /// Measurements per region.
+    #[arg(long, default_value_t = 20)]
     pub per_region: usize,
     /// Test points per region (planning mode).
+    #[arg(long, default_value_t = 20)]
     pub test_points: usize,
     /// Random poses the identifiable basis (the CEPs) is chosen on.
+    #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
     pub design_poses: usize,
     /// The learner that generalises the region-wise CEPs, or a neural network instead.
+    #[arg(skip = LearnerKind::Fcmac)]
     pub learner: LearnerKind,
     /// Sizes of the FCMAC and CMAC.
+    #[command(flatten)]
     pub learner_settings: LearnerSettings,
     /// Settings of a neural learner.
+    #[command(flatten)]
     pub neural: NeuralOptions,
     /// Seed of every random choice.
+    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// A point of the division space (file units: deg, or mm for R) whose region is treated as
     /// unmeasurable: its CEPs are dropped after the division and the learner must generalise
     /// there (seed 000 Fig. 8).
+    #[arg(skip)]
     pub unmeasurable_at: Option<[f64; 3]>,
 }
 
@@ -128,19 +144,26 @@ impl CalibrationOptions {
 }
 
 /// Settings of a neural learner (`nn-direct`, `nn-inverse`), seed 001's.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct NeuralOptions {
-    /// The scheme: 2 (joint correction) or 4 (position correction). 4 suits arms: a joint
-    /// correction computed by inverse kinematics blows up near singular poses.
+    /// Neural learners: the scheme of seed 001, 2 (joint correction) or 4 (position
+    /// correction). 4 is the default for arms: a joint correction computed by inverse
+    /// kinematics blows up near singular poses (the stretched RV-M2).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(2..=4))]
     pub scheme: u8,
-    /// Hidden neurons.
+    /// Neural learners: hidden neurons.
+    #[arg(long, default_value_t = 20)]
     pub hidden: usize,
-    /// Most epochs of batch back-propagation.
+    /// Neural learners: most epochs of batch back-propagation.
+    #[arg(long, default_value_t = 3000)]
     pub epochs: usize,
-    /// Learning rate η on the batch-summed gradient; None: 0.46 / training poses (the paper's
-    /// η = 0.01 at its 46 poses).
+    /// Neural learners: learning rate η on the batch-summed gradient [default: 0.46 / number
+    /// of training poses, the paper's η = 0.01 at its 46 poses].
+    #[arg(long)]
     pub learning_rate: Option<f64>,
-    /// Random poses measured when the source is a scenario (the paper's 110 regions × 20).
+    /// Random poses measured on a scenario when no recording is given (the paper's 110
+    /// regions × 20): by a neural learner, and by `compare` for every method.
+    #[arg(long, default_value_t = 2200)]
     pub measurements: usize,
 }
 
@@ -346,6 +369,9 @@ pub enum CalibrationError {
     /// The conventional fit failed.
     #[error("conventional fit: {0}")]
     Fit(#[from] crate::identification::FitError),
+    /// No recording to compare on and no scenario to simulate one.
+    #[error("give --scenario to simulate measurements, or --recording and --validation")]
+    NothingToCompare,
     /// The session measuring for the division stopped.
     #[error("the session in {} stopped; its recording keeps every finished point", dir.display())]
     Session {
@@ -387,6 +413,12 @@ pub enum CalibrationError {
         journal: usize,
         /// Division requests in the recording.
         recorded: usize,
+    },
+    /// A session whose registration was to be reused has none.
+    #[error("{}: its session.toml holds no [registration]", dir.display())]
+    NoRegistration {
+        /// The session directory.
+        dir: PathBuf,
     },
     /// A model file could not be used.
     #[error(transparent)]
@@ -461,8 +493,8 @@ fn observations_of(rec: &crate::recording::Recording) -> Vec<Observation> {
         .collect()
 }
 
-/// Refuses a scenario made for another rig.
-fn check_scenario_rig(rig: &Rig, sc: &Scenario) -> Result<(), CalibrationError> {
+/// Refuses a scenario made for another rig (a world that simulates another arm).
+pub fn check_scenario_rig(rig: &Rig, sc: &Scenario) -> Result<(), CalibrationError> {
     if sc.rig.name == rig.name {
         return Ok(());
     }

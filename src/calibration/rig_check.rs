@@ -6,12 +6,14 @@
 use super::CalibrationError;
 use crate::compensation::{compensate_from, CompensationOptions};
 use crate::kinematics::{ErrorModel, ErrorParams, Robot};
-use crate::recording::{Recording, Status};
-use crate::report::{joint_path, PathSpec};
+use crate::recording::{Recording, RegistrationInfo, Status};
+use crate::report::{joint_path, plot_errors, PathError, PathResult, PathSpec};
 use crate::rig::Rig;
 use crate::session::plan::{table_target, REFERENCE_REGION};
 use crate::session::PlannedPoint;
 use nalgebra::Vector3;
+use std::fmt::Write as _;
+use std::path::Path;
 
 /// Region id of the path's points in their sessions.
 pub const PATH_REGION: &str = "path";
@@ -60,6 +62,21 @@ fn straight_path(rig: &Rig, a: &[f64], b: &[f64], points: usize) -> PathSpec {
     };
     let name = format!("joint path ({}) → ({})", fmt(&da), fmt(&db));
     joint_path(rig, &name, &da, &db, points)
+}
+
+/// The registration an earlier session in `dir` made (its `session.toml`), for a path session
+/// that reuses it so both recordings share one frame.
+pub fn registration_of(rig: &Rig, dir: &Path) -> Result<RegistrationInfo, CalibrationError> {
+    let rec =
+        Recording::read(dir, rig.chain.joints()).map_err(|source| CalibrationError::Recording {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    rec.session
+        .and_then(|s| s.registration)
+        .ok_or_else(|| CalibrationError::NoRegistration {
+            dir: dir.to_path_buf(),
+        })
 }
 
 /// The commands along a path: its targets (the nominal positions), the nominal commands and
@@ -149,4 +166,83 @@ pub fn resolution_floor(rig: &Rig, commands: &[Vec<f64>]) -> Vec<f64> {
 /// The arm controller's command resolution (deg).
 pub fn resolution_deg(rig: &Rig) -> f64 {
     rig.devices.clone().unwrap_or_default().arm.resolution_deg
+}
+
+/// A model checked on the rig along a path: the distance to each target the rig measured at the
+/// nominal commands (`uncalibrated`) and at the commands the model compensates, and the floor
+/// the controller's command resolution sets.
+#[derive(Debug, Clone)]
+pub struct RigPathCheck {
+    /// The path's name.
+    pub path: String,
+    /// Points of the path.
+    pub points: usize,
+    /// Measured distance to target per point: uncalibrated, then the model.
+    pub results: Vec<PathResult>,
+    /// What rounding the compensated commands to the controller's resolution moves the tip (mm).
+    pub floor_mm: Vec<f64>,
+    /// The controller's command resolution (deg).
+    pub resolution_deg: f64,
+}
+
+impl RigPathCheck {
+    /// The check from the recordings of the two path sessions: at `commands.nominal` and at
+    /// `commands.compensated` (by the model named `model`).
+    pub fn new(
+        rig: &Rig,
+        path: &PathSpec,
+        commands: &PathCommands,
+        model: &str,
+        nominal: &Recording,
+        compensated: &Recording,
+    ) -> Self {
+        let result = |name: &str, rec: &Recording| PathResult {
+            model: name.to_string(),
+            errors: measured_errors(rec, &commands.targets),
+            traces: Vec::new(),
+            failures: 0,
+        };
+        Self {
+            path: path.name.clone(),
+            points: path.points.len(),
+            results: vec![result("uncalibrated", nominal), result(model, compensated)],
+            floor_mm: resolution_floor(rig, &commands.compensated),
+            resolution_deg: resolution_deg(rig),
+        }
+    }
+
+    /// Plots the measured distances along the path (SVG).
+    pub fn plot(&self, file: &Path) -> Result<(), PathError> {
+        plot_errors(
+            file,
+            &format!("distance to target measured by the rig along {}", self.path),
+            &self.results,
+        )
+    }
+
+    /// The check as `rigcal demo` prints it, with the plot's file.
+    pub fn text(&self, plot: &Path) -> String {
+        let mut s = format!(
+            "{} ({} points), measured by the rig (panel quantisation and table accuracy included):\n",
+            self.path, self.points
+        );
+        for r in &self.results {
+            let st = r.stats();
+            let missed = r.errors.iter().filter(|e| e.is_nan()).count();
+            let _ = writeln!(
+                s,
+                "  {:<14} mean {:.4} mm   max {:.4} mm   {missed} point(s) not measured",
+                r.model, st.mean_mm, st.max_mm
+            );
+        }
+        let _ = writeln!(s, "  plot: {}", plot.display());
+        let _ = writeln!(
+            s,
+            "  the controller's {}° command resolution alone moves the compensated tip by {:.4} mm mean, {:.4} mm max: the floor of joint-command compensation on this rig",
+            self.resolution_deg,
+            self.floor_mm.iter().sum::<f64>() / self.floor_mm.len().max(1) as f64,
+            self.floor_mm.iter().copied().fold(0.0, f64::max)
+        );
+        s
+    }
 }

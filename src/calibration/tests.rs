@@ -298,3 +298,40 @@ fn paths_are_parsed_and_traced_ceps_checked() {
     assert_eq!(paths.len(), 3);
     assert!(paths.iter().all(|p| p.points.len() == 11));
 }
+
+#[derive(clap::Parser)]
+struct Cli {
+    #[command(flatten)]
+    opts: CalibrationOptions,
+}
+
+#[test]
+fn the_command_line_defaults_are_the_library_defaults() {
+    use clap::Parser;
+    assert_eq!(
+        Cli::parse_from(["rigcal"]).opts,
+        CalibrationOptions::default()
+    );
+    let given = Cli::parse_from([
+        "rigcal",
+        "--division",
+        "cartesian",
+        "--fcmac-sensors",
+        "9,7,5",
+        "--fcmac-c",
+        "2,2,2",
+        "--max-regions",
+        "40",
+        "--design-poses",
+        "50",
+        "--scheme",
+        "2",
+    ])
+    .opts;
+    assert_eq!(given.space, Space::Cartesian);
+    assert_eq!(given.learner_settings.sensors, Some([9, 7, 5]));
+    assert_eq!(given.learner_settings.c, [2, 2, 2]);
+    assert_eq!((given.region_cap(), given.design_poses), (40, 50));
+    assert_eq!(given.neural.scheme, 2);
+    assert!(Cli::try_parse_from(["rigcal", "--fcmac-c", "3,3"]).is_err());
+}

@@ -9,7 +9,7 @@
 
 use super::{Calibrated, CalibrationError, CalibrationOptions, Source};
 use crate::rig::Rig;
-use crate::session::{recorded_requests, RecordedRequest, Session, SessionMeasurer};
+use crate::session::{recorded_requests, RecordedRequest, Session, SessionMeasurer, SessionReport};
 use std::path::{Path, PathBuf};
 
 /// How `session.toml` notes a planning-mode session; the options that shaped it follow.
@@ -115,21 +115,52 @@ pub fn resumed_requests(
     Ok(recorded)
 }
 
+/// A planning-mode session's result: the calibration and the finished session's report.
+#[derive(Debug, Clone)]
+pub struct SessionCalibrated {
+    /// The calibration.
+    pub calibrated: Calibrated,
+    /// What the session did (this run's counts on a resume).
+    pub report: SessionReport,
+}
+
+impl SessionCalibrated {
+    /// The session's line as `rigcal calibrate --session` prints it; `virtual_clock` for a dry
+    /// run.
+    pub fn session_text(&self, dir: &Path, virtual_clock: bool) -> String {
+        let r = &self.report;
+        format!(
+            "session {}: {} points asked for{}, {} measured, {} skipped, rig time {:.0} s ({:.2} h){}\n",
+            dir.display(),
+            r.points,
+            match r.resumed_at {
+                Some(k) => format!(" ({k} from earlier runs, replayed; this run's counts follow)"),
+                None => String::new(),
+            },
+            r.ok,
+            r.skipped.len(),
+            r.rig_time_s,
+            r.rig_time_s / 3600.0,
+            if virtual_clock { " on the virtual clock" } else { "" }
+        )
+    }
+}
+
 /// Planning mode through the opened `session` in `dir`: the division asks, the session
-/// measures. `recorded` answers the first requests of a resumed session
-/// ([`resumed_requests`]; empty for a new one). The session stays open: the caller finishes it.
+/// measures, and the session is finished. `recorded` answers the first requests of a resumed
+/// session ([`resumed_requests`]; empty for a new one).
 pub fn through_session<'r>(
     rig: &'r Rig,
-    session: &mut Session<'r>,
+    mut session: Session<'r>,
     dir: &Path,
     recorded: Vec<RecordedRequest>,
     opts: &CalibrationOptions,
     progress: &mut dyn FnMut(usize, usize),
-) -> Result<Calibrated, CalibrationError> {
+) -> Result<SessionCalibrated, CalibrationError> {
     if opts.is_neural() {
         return Err(CalibrationError::NeuralNeedsData);
     }
-    let mut measurer = SessionMeasurer::resuming(session, rig, recorded);
+    let mut measurer = SessionMeasurer::resuming(&mut session, rig, recorded);
     let calibrated = super::calibrate_with_progress(
         rig,
         Source::Measurer {
@@ -139,12 +170,15 @@ pub fn through_session<'r>(
         opts,
         progress,
     );
+    let stopped = |source| CalibrationError::Session {
+        dir: PathBuf::from(dir),
+        source,
+    };
     // A session fault ends the division early: it, not the division's view of it, is the error.
     if let Some(source) = measurer.into_error() {
-        return Err(CalibrationError::Session {
-            dir: PathBuf::from(dir),
-            source,
-        });
+        return Err(stopped(source));
     }
-    calibrated
+    let calibrated = calibrated?;
+    let report = session.finish().map_err(stopped)?;
+    Ok(SessionCalibrated { calibrated, report })
 }

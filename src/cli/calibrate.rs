@@ -3,9 +3,10 @@
 //! asks for (planning), or a measurement session (planning through the rig); see
 //! [`crate::calibration`].
 
-use crate::calibration::{self, Calibrated, CalibrationOptions, NeuralOptions, PlanningFiles};
-use crate::division::Space;
-use crate::learners::{LearnerKind, LearnerSettings};
+use crate::calibration::{
+    self, Calibrated, CalibrationError, CalibrationOptions, PlanningFiles, Source,
+};
+use crate::learners::LearnerKind;
 use crate::rig::Rig;
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
@@ -41,174 +42,47 @@ pub struct Args {
     /// Learner that generalises the region-wise CEPs.
     #[arg(long, value_enum, default_value_t = LearnerKind::Fcmac)]
     pub learner: LearnerKind,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
     /// Treat the region containing this point of the division space (q1,q2,q3 in degrees, or
     /// R mm,azimuth deg,elevation deg) as unmeasurable: its CEPs are dropped after the division
     /// and the learner must generalise there (seed 000 Fig. 8).
     #[arg(long, allow_hyphen_values = true, value_name = "A,B,C", value_parser = three_numbers)]
     pub unmeasurable_at: Option<[f64; 3]>,
     #[command(flatten)]
-    pub paper: PaperArgs,
-    #[command(flatten)]
-    pub neural: NeuralArgs,
-    /// Neural learners: with `--scenario`, the number of random poses measured (the paper's
-    /// 110 regions × 20).
-    #[arg(long, default_value_t = 2200)]
-    pub measurements: usize,
+    pub settings: CalibrationOptions,
     /// Where to write the model (JSON).
     #[arg(long)]
     pub out: PathBuf,
 }
 
-/// The division's and the learners' settings whose defaults are the paper's (seed 000).
-#[derive(Debug, Clone, clap::Args)]
-pub struct PaperArgs {
-    /// Division space.
-    #[arg(long, value_enum, default_value_t = Space::Joint)]
-    pub division: Space,
-    /// Most regions [default: 110 for joint, 130 for Cartesian division, as in the paper].
-    #[arg(long)]
-    pub max_regions: Option<usize>,
-    /// Measurements per region.
-    #[arg(long, default_value_t = 20)]
-    pub per_region: usize,
-    /// Test points per region (planning mode).
-    #[arg(long, default_value_t = 20)]
-    pub test_points: usize,
-    /// Random poses the identifiable basis (the CEPs) is chosen on.
-    #[arg(long, default_value_t = calibration::PAPER_DESIGN_POSES)]
-    pub design_poses: usize,
-    /// FCMAC sensors per input (the CMAC's cells too) [default: 17 on the first joint's
-    /// coordinate, 11 on the others: 17,11,11 for joint, 11,17,11 for Cartesian division].
-    #[arg(long, value_name = "A,B,C", value_parser = three_counts)]
-    pub fcmac_sensors: Option<[usize; 3]>,
-    /// FCMAC sensors an input excites per dimension (the paper's c).
-    #[arg(long, value_name = "A,B,C", value_parser = three_counts, default_value = "3,3,3")]
-    pub fcmac_c: [usize; 3],
-    /// CMAC layers.
-    #[arg(long, default_value_t = 3)]
-    pub cmac_layers: usize,
-}
-
-/// Settings of the neural learners (`nn-direct`, `nn-inverse`).
-#[derive(Debug, Clone, clap::Args)]
-pub struct NeuralArgs {
-    /// Neural learners: the scheme of seed 001, 2 (joint correction) or 4 (position
-    /// correction). 4 is the default for arms: a joint correction computed by inverse
-    /// kinematics blows up near singular poses (the stretched RV-M2).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(2..=4))]
-    pub scheme: u8,
-    /// Neural learners: hidden neurons.
-    #[arg(long, default_value_t = 20)]
-    pub hidden: usize,
-    /// Neural learners: most epochs of batch back-propagation.
-    #[arg(long, default_value_t = 3000)]
-    pub epochs: usize,
-    /// Neural learners: learning rate η on the batch-summed gradient [default: 0.46 / number
-    /// of training poses, the paper's η = 0.01 at its 46 poses].
-    #[arg(long)]
-    pub learning_rate: Option<f64>,
-}
-
-/// Three comma-separated numbers.
+/// Three numbers separated by commas.
 fn three_numbers(text: &str) -> Result<[f64; 3], String> {
     let bad = || format!("`{text}`: give three numbers separated by commas");
     let v: Vec<f64> = text
         .split(',')
-        .map(|v| v.trim().parse::<f64>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| bad())?;
+        .map(|v| v.trim().parse().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
     v.try_into().map_err(|_| bad())
-}
-
-/// Three comma-separated counts.
-fn three_counts(text: &str) -> Result<[usize; 3], String> {
-    let bad = || format!("`{text}`: give three whole numbers separated by commas");
-    let v: Vec<usize> = text
-        .split(',')
-        .map(|v| v.trim().parse::<usize>())
-        .collect::<Result<_, _>>()
-        .map_err(|_| bad())?;
-    v.try_into().map_err(|_| bad())
-}
-
-impl PaperArgs {
-    /// Calibration options with these settings, the rest at their defaults.
-    pub(crate) fn options(
-        &self,
-        accuracy_mm: f64,
-        learner: LearnerKind,
-        seed: u64,
-    ) -> CalibrationOptions {
-        CalibrationOptions {
-            space: self.division,
-            accuracy_mm,
-            max_regions: self.max_regions,
-            per_region: self.per_region,
-            test_points: self.test_points,
-            design_poses: self.design_poses,
-            learner,
-            learner_settings: LearnerSettings {
-                sensors: self.fcmac_sensors,
-                c: self.fcmac_c,
-                cmac_layers: self.cmac_layers,
-            },
-            seed,
-            ..CalibrationOptions::default()
-        }
-    }
-}
-
-impl NeuralArgs {
-    /// The neural options, `measurements` random poses from a scenario.
-    pub(crate) fn options(&self, measurements: usize) -> NeuralOptions {
-        NeuralOptions {
-            scheme: self.scheme,
-            hidden: self.hidden,
-            epochs: self.epochs,
-            learning_rate: self.learning_rate,
-            measurements,
-        }
-    }
 }
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
-    let mut opts = a.paper.options(a.accuracy_mm, a.learner, a.seed);
-    opts.neural = a.neural.options(a.measurements);
-    opts.unmeasurable_at = a.unmeasurable_at;
+    let opts = CalibrationOptions {
+        accuracy_mm: a.accuracy_mm,
+        learner: a.learner,
+        unmeasurable_at: a.unmeasurable_at,
+        ..a.settings.clone()
+    };
     let calibrated = match (&a.recording, &a.scenario, &a.session) {
-        (Some(dir), None, _) => {
-            let rec = super::identify::read_recording(&rig, dir)?;
-            let observations = super::observations(&rec);
-            let label = dir.display().to_string();
-            with_bar(&opts, |progress| {
-                calibration::calibrate_with_progress(
-                    &rig,
-                    calibration::Source::Offline {
-                        observations: &observations,
-                        label,
-                    },
-                    &opts,
-                    progress,
-                )
-            })?
-        }
+        (Some(dir), None, _) => offline(&rig, dir, &opts)?,
         (None, Some(scenario), _) => {
             let sc = crate::world::Scenario::load(scenario, None)?;
-            with_bar(&opts, |progress| {
-                calibration::calibrate_with_progress(
-                    &rig,
-                    calibration::Source::Scenario(&sc),
-                    &opts,
-                    progress,
-                )
-            })?
+            let c = with_bar(&opts, |p| {
+                calibration::calibrate_with_progress(&rig, Source::Scenario(&sc), &opts, p)
+            })?;
+            print!("{}", c.text());
+            c
         }
-        (None, None, Some(dir)) if !opts.is_neural() => through_session(&rig, &a, dir, &opts)?,
-        (None, None, Some(_)) => return Err(calibration::CalibrationError::NeuralNeedsData.into()),
+        (None, None, Some(dir)) => through_session(&rig, &a, dir, &opts)?,
         _ => bail!("give --recording DIR (offline), --scenario FILE (planning on a simulated world) or --session DIR (planning through the rig)"),
     };
     calibrated.model.save(&a.out)?;
@@ -216,11 +90,27 @@ pub fn run(a: Args) -> Result<()> {
     Ok(())
 }
 
-/// Runs a calibration under a progress bar of the division's regions and prints its figures.
-pub(crate) fn with_bar(
+/// Offline calibration from the recording in `dir`, its figures printed.
+pub(crate) fn offline(rig: &Rig, dir: &Path, opts: &CalibrationOptions) -> Result<Calibrated> {
+    let rec = super::identify::read_recording(rig, dir)?;
+    let observations = super::observations(&rec);
+    let label = dir.display().to_string();
+    let c = with_bar(opts, |p| {
+        let source = Source::Offline {
+            observations: &observations,
+            label,
+        };
+        calibration::calibrate_with_progress(rig, source, opts, p)
+    })?;
+    print!("{}", c.text());
+    Ok(c)
+}
+
+/// Runs a calibration under a progress bar of the division's regions.
+fn with_bar<T>(
     opts: &CalibrationOptions,
-    run: impl FnOnce(&mut dyn FnMut(usize, usize)) -> Result<Calibrated, calibration::CalibrationError>,
-) -> Result<Calibrated> {
+    run: impl FnOnce(&mut dyn FnMut(usize, usize)) -> Result<T, CalibrationError>,
+) -> Result<T> {
     // A network does not divide: no bar.
     let bar = if opts.is_neural() {
         ProgressBar::hidden()
@@ -231,11 +121,9 @@ pub(crate) fn with_bar(
         ProgressStyle::with_template("dividing {bar:30} {pos}/{len} regions {elapsed}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let calibrated = run(&mut |n, _| bar.set_position(n as u64));
+    let done = run(&mut |n, _| bar.set_position(n as u64));
     bar.finish_and_clear();
-    let calibrated = calibrated?;
-    print!("{}", calibrated.text());
-    Ok(calibrated)
+    Ok(done?)
 }
 
 /// Planning mode through a measurement session in `dir`: every measurement the division asks
@@ -246,6 +134,9 @@ fn through_session(
     dir: &Path,
     opts: &CalibrationOptions,
 ) -> Result<Calibrated> {
+    if opts.is_neural() {
+        return Err(CalibrationError::NeuralNeedsData.into());
+    }
     let files = PlanningFiles {
         rig: &a.rig,
         sim: a.sim.as_deref(),
@@ -253,42 +144,25 @@ fn through_session(
     if a.resume {
         calibration::refuse_other_options(dir, files, opts)?;
     }
-    let note = calibration::planning_note(files, opts);
-    let mut session = open_session(rig, a, dir, note)?;
-    let recorded = if a.resume {
-        let recorded = calibration::resumed_requests(rig, dir, session.points_done())?;
+    let session = open_session(rig, a, dir, calibration::planning_note(files, opts))?;
+    let mut recorded = Vec::new();
+    if a.resume {
+        recorded = calibration::resumed_requests(rig, dir, session.points_done())?;
+        let n = recorded.len();
         eprintln!(
-            "resuming {}: {} finished points replayed to the division, then measuring on",
-            dir.display(),
-            recorded.len()
+            "resuming {}: {n} finished points replayed to the division, then measuring on",
+            dir.display()
         );
-        recorded
-    } else {
-        Vec::new()
-    };
-    let calibrated = with_bar(opts, |progress| {
-        calibration::through_session(rig, &mut session, dir, recorded, opts, progress)
+    }
+    let s = with_bar(opts, |p| {
+        calibration::through_session(rig, session, dir, recorded, opts, p)
     })?;
-    let report = session.finish()?;
-    println!(
-        "session {}: {} points asked for{}, {} measured, {} skipped, rig time {:.0} s ({:.2} h){}",
-        dir.display(),
-        report.points,
-        match report.resumed_at {
-            Some(k) => format!(" ({k} from earlier runs, replayed; this run's counts follow)"),
-            None => String::new(),
-        },
-        report.ok,
-        report.skipped.len(),
-        report.rig_time_s,
-        report.rig_time_s / 3600.0,
-        if a.sim.is_some() {
-            " on the virtual clock"
-        } else {
-            ""
-        }
+    print!(
+        "{}{}",
+        s.calibrated.text(),
+        s.session_text(dir, a.sim.is_some())
     );
-    Ok(calibrated)
+    Ok(s.calibrated)
 }
 
 /// Opens (or resumes) the planning-mode session in `dir` on the rig's devices, or on emulators
@@ -302,7 +176,7 @@ fn open_session<'r>(
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
     let (devices, world) = super::session::open_rig(rig, scenario.as_ref(), false)?;
     let mut opts = crate::session::SessionOptions::new(dir);
-    opts.seed = a.seed;
+    opts.seed = a.settings.seed;
     opts.resume = a.resume;
     opts.fsync = !devices.clock.is_virtual();
     opts.info = crate::recording::SessionInfo {

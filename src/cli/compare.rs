@@ -2,16 +2,12 @@
 //! the neuro-kinematic model (seed 001) on one recording and one validation set, side by side;
 //! as a table (terminal and Markdown) and SVG plots. See [`crate::calibration::compare`].
 
-use super::calibrate::{NeuralArgs, PaperArgs};
-use crate::calibration::{self, CompareInput};
-use crate::identification::Observation;
-use crate::kinematics::Robot;
-use crate::learners::LearnerKind;
-use crate::recording::Recording;
-use crate::report::plot_errors;
+use crate::calibration::{self, CalibrationOptions, CompareInput};
+use crate::report::PathSpec;
 use crate::rig::Rig;
-use anyhow::{bail, Context, Result};
-use std::path::{Path, PathBuf};
+use crate::world::Scenario;
+use anyhow::{bail, Result};
+use std::path::PathBuf;
 
 /// Arguments of `rigcal compare`.
 #[derive(Debug, clap::Args)]
@@ -29,9 +25,6 @@ pub struct Args {
     /// A validation recording (otherwise random poses of the scenario).
     #[arg(long)]
     pub validation: Option<PathBuf>,
-    /// Measurements simulated when no recording is given (the paper's 110 regions × 20).
-    #[arg(long, default_value_t = 2200)]
-    pub measurements: usize,
     /// Validation poses simulated when no validation recording is given.
     #[arg(long, default_value_t = 1000)]
     pub validation_points: usize,
@@ -42,12 +35,7 @@ pub struct Args {
     #[arg(long = "path", default_values_t = vec!["fig6".to_string(), "fig7".to_string()])]
     pub paths: Vec<String>,
     #[command(flatten)]
-    pub paper: PaperArgs,
-    #[command(flatten)]
-    pub neural: NeuralArgs,
-    /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    pub settings: CalibrationOptions,
     /// Directory for the table (`compare.md`), plots (SVG) and CSVs.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -55,45 +43,22 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
-    let scenario = match &a.scenario {
-        Some(p) => Some(crate::world::Scenario::load(p, None)?),
-        None => None,
-    };
+    let scenario = a
+        .scenario
+        .as_deref()
+        .map(|p| Scenario::load(p, None))
+        .transpose()?;
     if let Some(sc) = &scenario {
-        if sc.rig.name != rig.name {
-            bail!(
-                "scenario {} is for rig `{}`, not `{}`",
-                sc.path.display(),
-                sc.rig.name,
-                rig.name
-            );
-        }
+        calibration::check_scenario_rig(&rig, sc)?;
     }
     let world = scenario.as_ref().map(|s| s.world());
-    let read = |dir: &PathBuf| -> Result<Vec<Observation>> {
-        Ok(super::observations(&Recording::read(
-            dir,
-            rig.chain.joints(),
-        )?))
-    };
-    let simulate = |n: usize, seed: u64| -> Result<Vec<Observation>> {
-        let w = world
-            .as_ref()
-            .context("give --scenario to simulate measurements, or --recording and --validation")?;
-        Ok(calibration::simulated_observations(&rig, w, n, seed))
-    };
-    let (obs, label) = match &a.recording {
-        Some(d) => (read(d)?, d.display().to_string()),
-        None => (
-            simulate(a.measurements, a.seed)?,
-            format!("{} simulated random poses", a.measurements),
-        ),
-    };
-    let val = match &a.validation {
-        Some(d) => read(d)?,
-        None => simulate(a.validation_points, a.seed + 1000)?,
-    };
-    let paths = match &world {
+    let (n, seed) = (a.settings.neural.measurements, a.settings.seed);
+    let (obs, label) =
+        calibration::measurements(&rig, a.recording.as_deref(), world.as_ref(), n, seed)?;
+    let val = a.validation.as_deref();
+    let (val, _) =
+        calibration::measurements(&rig, val, world.as_ref(), a.validation_points, seed + 1000)?;
+    let paths = match world {
         Some(_) => paper_paths(&rig, &a.paths)?,
         None => Vec::new(),
     };
@@ -104,27 +69,27 @@ pub fn run(a: Args) -> Result<()> {
         world: world.as_ref(),
         paths: &paths,
     };
-    let mut opts = a.paper.options(a.accuracy_mm, LearnerKind::Fcmac, a.seed);
-    opts.neural = a.neural.options(a.measurements);
+    let opts = CalibrationOptions {
+        accuracy_mm: a.accuracy_mm,
+        ..a.settings.clone()
+    };
     let c = calibration::compare(&rig, &input, &opts)?;
-    println!(
-        "== variable D-H model (seed 000), offline division at {} mm",
-        a.accuracy_mm
-    );
-    print!("{}", c.variable.text());
-    println!("== neuro-kinematic model (seed 001)");
-    print!("{}", c.neural.text());
-    let md = c.markdown();
-    println!("\n{md}");
-    println!("validation: {} poses; apparent = against the measurements, actual = against the simulated truth", c.validation_points);
+    print!("{}", c.text(a.accuracy_mm));
     if let Some(dir) = &a.out {
-        write_files(dir, &md, &c.paths)?;
+        for file in c.write_files(dir)? {
+            let kind = if file.extension().is_some_and(|e| e == "md") {
+                "table"
+            } else {
+                "plot"
+            };
+            println!("{kind}: {}", file.display());
+        }
     }
     Ok(())
 }
 
 /// The paper's paths named on the command line.
-fn paper_paths(rig: &Rig, names: &[String]) -> Result<Vec<(String, crate::report::PathSpec)>> {
+fn paper_paths(rig: &Rig, names: &[String]) -> Result<Vec<(String, PathSpec)>> {
     names
         .iter()
         .map(|p| {
@@ -136,26 +101,4 @@ fn paper_paths(rig: &Rig, names: &[String]) -> Result<Vec<(String, crate::report
             Ok((p.clone(), spec))
         })
         .collect()
-}
-
-/// Writes the table and one plot per path into `dir`.
-fn write_files(
-    dir: &Path,
-    md: &str,
-    paths: &[(String, Vec<crate::report::PathResult>)],
-) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let f = dir.join("compare.md");
-    std::fs::write(&f, md).with_context(|| format!("cannot write {}", f.display()))?;
-    for (p, res) in paths {
-        let svg = dir.join(format!("compare-{p}.svg"));
-        plot_errors(
-            &svg,
-            &format!("position error along {p}: three calibrations"),
-            res,
-        )?;
-        println!("plot: {}", svg.display());
-    }
-    println!("table: {}", f.display());
-    Ok(())
 }

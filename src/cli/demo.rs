@@ -12,15 +12,14 @@
 //!
 //! Everything goes to `--out`; `summary.txt` there repeats the closing table.
 
-use crate::calibration::{self, rig_check, CalibrationOptions, Source};
+use crate::calibration::{self, rig_check, CalibrationOptions};
 use crate::kinematics::Robot;
 use crate::model::{ModelFile, Provenance};
-use crate::recording::Recording;
-use crate::report::{PathResult, PathSpec};
+use crate::recording::{Recording, RegistrationInfo, SessionInfo};
+use crate::report::{mean_max_rows, PathResult, PathSpec};
 use crate::rig::Rig;
-use crate::session::{read_plan, write_plan, SessionOptions, SessionReport};
+use crate::session::{read_plan, write_plan, SessionOptions};
 use anyhow::{bail, Context, Result};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 const PAPER_RIG: &str = "rigs/rv-m2-ideal.toml";
@@ -58,110 +57,103 @@ pub fn run(a: Args) -> Result<()> {
     anyhow::ensure!(a.points >= 100, "--points must be at least 100");
     anyhow::ensure!(a.rig_points >= 60, "--rig-points must be at least 60");
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let out = |name: &str| a.out.join(name);
     for dir in ["paper", "rig"] {
-        clear_session_dir(&out(dir))?;
+        clear_session_dir(&a.out.join(dir))?;
     }
-    let (paper_rig, real_rig) = (
-        Rig::load(Path::new(PAPER_RIG))?,
-        Rig::load(Path::new(REAL_RIG))?,
-    );
-    heading("1. Dry-run session: seed 000's simulation on the ideal-instrument RV-M2");
     let started = std::time::Instant::now();
-    let paper_session = DrySession::planned(PAPER_RIG, PAPER_SCENARIO, a.points, a.seed);
-    dry_session(&paper_session, &out("paper"))?;
+    let paper = paper_steps(&a)?;
+    let rig = rig_steps(&a)?;
+    let mut summary = format!(
+        "rigcal demo summary (seed {}, {:.1} s wall)\npaper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm\n",
+        a.seed,
+        started.elapsed().as_secs_f64()
+    );
+    for (name, results) in &paper {
+        summary.push_str(&mean_max_rows(name, results));
+    }
+    summary.push_str("real rig: distance to target measured by the rig itself, mean / max in mm\n");
+    summary.push_str(&mean_max_rows(&rig.0, &rig.1));
+    summary.push_str(&format!("files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt\n", a.out.display()));
+    heading("Summary");
+    print!("{summary}");
+    let file = a.out.join("summary.txt");
+    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))
+}
+
+/// Steps 1–3 on the paper's scenario; the results per path (by name).
+fn paper_steps(a: &Args) -> Result<Vec<(String, Vec<PathResult>)>> {
+    let out = |name: &str| a.out.join(name);
+    let rig = Rig::load(Path::new(PAPER_RIG))?;
+    heading("1. Dry-run session: seed 000's simulation on the ideal-instrument RV-M2");
+    dry_session(
+        PAPER_RIG,
+        PAPER_SCENARIO,
+        Plan::Points(a.points, a.seed),
+        &out("paper"),
+    )?;
     heading("2. Variable D-H model from the recording: division, CEPs per region, FCMAC");
-    calibrate(&paper_rig, &out("paper"), &a, &out("paper-model.json"))?;
+    let opts = CalibrationOptions {
+        accuracy_mm: a.accuracy_mm,
+        seed: a.seed,
+        ..Default::default()
+    };
+    let model = out("paper-model.json");
+    super::calibrate::offline(&rig, &out("paper"), &opts)?
+        .model
+        .save(&model)?;
+    println!("model written to {}", model.display());
     heading("3. Evaluation along the paper's paths (true simulated arm vs target)");
-    let paper_paths = vec![
-        calibration::fig6_path(&paper_rig, 101),
-        calibration::fig7_path(&paper_rig, 101)?,
+    let paths = vec![
+        calibration::fig6_path(&rig, 101),
+        calibration::fig7_path(&rig, 101)?,
     ];
     let traced = calibration::PAPER_TRACED_CEPS.map(String::from);
-    let paper_results = super::evaluate::evaluate(
-        &out("paper-model.json"),
+    let plots = out("paper-plots");
+    let results = super::evaluate::evaluate(
+        &model,
         Path::new(PAPER_SCENARIO),
-        &paper_paths,
+        &paths,
         &traced,
-        Some(&out("paper-plots")),
+        Some(&plots),
     )?;
+    Ok(paths.into_iter().map(|p| p.name).zip(results).collect())
+}
+
+/// Steps 4–7 on the real rig's constraints; the measured path's name and results.
+fn rig_steps(a: &Args) -> Result<(String, Vec<PathResult>)> {
+    let out = |name: &str| a.out.join(name);
+    let rig = Rig::load(Path::new(REAL_RIG))?;
     heading("4. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
     dry_session(
-        &DrySession::planned(REAL_RIG, REAL_SCENARIO, a.rig_points, a.seed),
+        REAL_RIG,
+        REAL_SCENARIO,
+        Plan::Points(a.rig_points, a.seed),
         &out("rig"),
     )?;
     heading("5. Conventional identification from the rig recording");
-    identify(&real_rig, &out("rig"), &out("rig-model.json"))?;
-    let planned = read_plan(&out("rig").join("plan.csv"), &real_rig)?;
-    let rig_path = rig_check::measurable_path(&real_rig, &planned, 101).context(
+    identify(&rig, &out("rig"), &out("rig-model.json"))?;
+    let planned = read_plan(&out("rig").join("plan.csv"), &rig)?;
+    let path = rig_check::measurable_path(&rig, &planned, 101).context(
         "no two planned points of the rig session are joined by a measurable straight joint path",
     )?;
     heading(&format!(
         "6. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
-        rig_path.name
+        path.name
     ));
-    let rig_results = rig_path_check(&real_rig, &out("rig-model.json"), &rig_path, &a.out)?;
+    let results = rig_path_check(&rig, &out("rig-model.json"), &path, &a.out)?;
     heading("7. Diagnosis: what the geometric model leaves out of the rig recording");
     diagnose(
-        &real_rig,
+        &rig,
         &out("rig"),
         &out("rig-plots"),
         &out("rig-diagnosis.json"),
     )?;
-
-    let mut summary = String::new();
-    let _ = writeln!(
-        summary,
-        "rigcal demo summary (seed {}, {:.1} s wall)",
-        a.seed,
-        started.elapsed().as_secs_f64()
-    );
-    let _ = writeln!(summary, "paper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm");
-    for (spec, results) in paper_paths.iter().zip(&paper_results) {
-        summary_rows(&mut summary, spec, results);
-    }
-    let _ = writeln!(
-        summary,
-        "real rig: distance to target measured by the rig itself, mean / max in mm"
-    );
-    summary_rows(&mut summary, &rig_path, &rig_results);
-    let _ = writeln!(summary, "files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt", a.out.display());
-    heading("Summary");
-    print!("{summary}");
-    let file = out("summary.txt");
-    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))
-}
-
-/// Step 2: the variable D-H model from the recording in `dir`, written to `model`.
-fn calibrate(rig: &Rig, dir: &Path, a: &Args, model: &Path) -> Result<()> {
-    let rec = super::identify::read_recording(rig, dir)?;
-    let observations = super::observations(&rec);
-    let opts = CalibrationOptions {
-        accuracy_mm: a.accuracy_mm,
-        seed: a.seed,
-        ..CalibrationOptions::default()
-    };
-    let label = dir.display().to_string();
-    let calibrated = super::calibrate::with_bar(&opts, |progress| {
-        calibration::calibrate_with_progress(
-            rig,
-            Source::Offline {
-                observations: &observations,
-                label,
-            },
-            &opts,
-            progress,
-        )
-    })?;
-    calibrated.model.save(model)?;
-    println!("model written to {}", model.display());
-    Ok(())
+    Ok((path.name, results))
 }
 
 /// Runs the path twice on the rig — at the nominal commands and at the commands the identified
-/// model compensates — each as a session reusing the rig session's registration (one frame),
-/// and returns the measured distance to the target per point. On the real rig this is how a
-/// model is checked: the truth is what the instrument measures.
+/// model compensates — each as a session reusing the rig session's registration (one frame).
+/// On the real rig this is how a model is checked: the truth is what the instrument measures.
 fn rig_path_check(
     rig: &Rig,
     model_path: &Path,
@@ -173,134 +165,74 @@ fn rig_path_check(
         .error_models(rig, model_path)?;
     let (name, model) = models.first().context("the model file holds no model")?;
     let commands = rig_check::path_commands(rig, model.as_ref(), path)?;
-    let mut results = Vec::new();
-    for (label, tag, points) in [
-        ("uncalibrated", "nominal", &commands.nominal),
-        (name.as_str(), "compensated", &commands.compensated),
+    let registration = rig_check::registration_of(rig, &out.join("rig"))?;
+    let mut recordings = Vec::new();
+    for (tag, points) in [
+        ("nominal", &commands.nominal),
+        ("compensated", &commands.compensated),
     ] {
-        let plan_file = out.join(format!("rig-path-{tag}.csv"));
-        write_plan(&plan_file, rig, &rig_check::path_plan(rig, points))?;
+        let plan = out.join(format!("rig-path-{tag}.csv"));
+        write_plan(&plan, rig, &rig_check::path_plan(rig, points))?;
         let dir = out.join(format!("rig-path-{tag}"));
         clear_session_dir(&dir)?;
-        let session = DrySession {
-            plan: Plan::File(&plan_file),
-            seed: None,
-            registration_from: Some(out.join("rig")),
-            ..DrySession::planned(REAL_RIG, REAL_SCENARIO, 0, 0)
-        };
-        dry_session(&session, &dir)?;
-        let rec = Recording::read(&dir, rig.chain.joints())?;
-        let errors = rig_check::measured_errors(&rec, &commands.targets);
-        results.push(PathResult {
-            model: label.to_string(),
-            errors,
-            traces: Vec::new(),
-            failures: 0,
-        });
+        dry_session(
+            REAL_RIG,
+            REAL_SCENARIO,
+            Plan::File(&plan, registration.clone()),
+            &dir,
+        )?;
+        recordings.push(Recording::read(&dir, rig.chain.joints())?);
     }
-    let plots = out.join("rig-plots");
-    std::fs::create_dir_all(&plots)?;
-    let file = plots.join("rig-path-measured-errors.svg");
-    crate::report::plot_errors(
-        &file,
-        &format!("distance to target measured by the rig along {}", path.name),
-        &results,
-    )?;
-    println!(
-        "{} (101 points), measured by the rig (panel quantisation and table accuracy included):",
-        path.name
-    );
-    for r in &results {
-        let st = r.stats();
-        let missed = r.errors.iter().filter(|e| e.is_nan()).count();
-        println!(
-            "  {:<14} mean {:.4} mm   max {:.4} mm   {missed} point(s) not measured",
-            r.model, st.mean_mm, st.max_mm
-        );
-    }
-    println!("  plot: {}", file.display());
-    let floor = rig_check::resolution_floor(rig, &commands.compensated);
-    println!(
-        "  the controller's {}° command resolution alone moves the compensated tip by {:.4} mm mean, {:.4} mm max: the floor of joint-command compensation on this rig",
-        rig_check::resolution_deg(rig),
-        floor.iter().sum::<f64>() / floor.len().max(1) as f64,
-        floor.iter().copied().fold(0.0, f64::max)
-    );
-    Ok(results)
+    let check =
+        rig_check::RigPathCheck::new(rig, path, &commands, name, &recordings[0], &recordings[1]);
+    std::fs::create_dir_all(out.join("rig-plots"))?;
+    let plot = out.join("rig-plots").join("rig-path-measured-errors.svg");
+    check.plot(&plot)?;
+    print!("{}", check.text(&plot));
+    Ok(check.results)
 }
 
 /// What a dry-run session measures.
 enum Plan<'a> {
-    /// This many points planned here, the dropped candidates reported.
-    Points(usize),
-    /// The points of this plan file.
-    File(&'a Path),
+    /// This many points planned here from a seed, the dropped candidates reported; then a
+    /// registration.
+    Points(usize, u64),
+    /// The points of a plan file, in the frame of this registration.
+    File(&'a Path, RegistrationInfo),
 }
 
-/// A dry-run session as `rigcal session --sim` runs it: emulators on the virtual clock.
-struct DrySession<'a> {
-    rig: &'a str,
-    scenario: &'a str,
-    plan: Plan<'a>,
-    /// Seed of the plan and the registration (None: the scenario's).
-    seed: Option<u64>,
-    /// Reuse this session's registration instead of registering again.
-    registration_from: Option<PathBuf>,
-}
-
-impl<'a> DrySession<'a> {
-    fn planned(rig: &'a str, scenario: &'a str, points: usize, seed: u64) -> Self {
-        Self {
-            rig,
-            scenario,
-            plan: Plan::Points(points),
-            seed: Some(seed),
-            registration_from: None,
-        }
-    }
-}
-
-/// Runs a dry-run session into `dir`, printing what `rigcal session` prints. With
-/// [`print_session`], the demo's only calls into the session API.
-fn dry_session(s: &DrySession<'_>, dir: &Path) -> Result<()> {
+/// Runs a dry-run session into `dir` as `rigcal session --sim` does: emulators on the virtual
+/// clock. The demo's only calls into the session API.
+fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Result<()> {
     use crate::session::{
-        estimate, plan, registration_points, run_session, ContactSettings, Progress, RigSpeeds,
+        estimate, registration_points, run_session, ContactSettings, Progress, RigSpeeds,
     };
-    let rig = Rig::load(Path::new(s.rig))?;
-    let scenario =
-        super::session::load_scenario(&rig, Path::new(s.rig), Some(Path::new(s.scenario)), None)?
+    let rig = Rig::load(Path::new(rig_file))?;
+    let sc =
+        super::session::load_scenario(&rig, Path::new(rig_file), Some(Path::new(scenario)), None)?
             .context("a dry run needs its scenario")?;
-    let seed = s.seed.unwrap_or(scenario.seed);
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let plan_path = dir.join("plan.csv");
-    let points = match s.plan {
-        Plan::Points(n) => {
-            let p = plan(&rig, &super::plan::options(n, 8, 50, seed))?;
+    let mut opts = SessionOptions::new(dir);
+    let (points, registration) = match plan {
+        Plan::Points(n, seed) => {
+            let p = crate::session::plan(&rig, &super::plan::options(n, 8, 50, seed))?;
             super::plan::report_dropped(&rig, &p, &plan_path)?;
-            p.points
+            opts.seed = seed;
+            (
+                p.points,
+                registration_points(&rig, opts.registration_points, seed),
+            )
         }
-        Plan::File(file) => read_plan(file, &rig)?,
+        Plan::File(file, registration) => {
+            opts.seed = sc.seed;
+            opts.registration = Some(registration);
+            (read_plan(file, &rig)?, Vec::new())
+        }
     };
     write_plan(&plan_path, &rig, &points)?;
     // Measured as read back from the file, as a session does.
     let points = read_plan(&plan_path, &rig)?;
-    let mut opts = SessionOptions::new(dir);
-    opts.seed = seed;
-    let registration = match &s.registration_from {
-        Some(from) => {
-            let rec = Recording::read(from, rig.chain.joints())
-                .with_context(|| format!("reading the session {}", from.display()))?;
-            let reg = rec.session.and_then(|i| i.registration);
-            opts.registration = Some(reg.with_context(|| {
-                format!(
-                    "{}: its session.toml holds no [registration]",
-                    from.display()
-                )
-            })?);
-            Vec::new()
-        }
-        None => registration_points(&rig, opts.registration_points, seed),
-    };
     let all = [registration, points.clone()].concat();
     println!(
         "{}",
@@ -311,19 +243,20 @@ fn dry_session(s: &DrySession<'_>, dir: &Path) -> Result<()> {
             &ContactSettings::default()
         ))
     );
-    let (devices, world) = super::session::open_rig(&rig, Some(&scenario), false)?;
+    let (devices, world) = super::session::open_rig(&rig, Some(&sc), false)?;
     opts.fsync = !devices.clock.is_virtual();
-    opts.info = crate::recording::SessionInfo {
-        rig: Some(s.rig.to_string()),
-        scenario: Some(s.scenario.to_string()),
-        seed: Some(scenario.seed),
-        notes: Some(format!(
-            "rigcal session: {} points, dry run on the virtual clock",
-            points.len()
-        )),
+    let notes = format!(
+        "rigcal session: {} points, dry run on the virtual clock",
+        points.len()
+    );
+    opts.info = SessionInfo {
+        rig: Some(rig_file.into()),
+        scenario: Some(scenario.into()),
+        seed: Some(sc.seed),
+        notes: Some(notes),
         ..Default::default()
     };
-    let report = run_session(
+    let r = run_session(
         &rig,
         devices,
         world,
@@ -331,16 +264,13 @@ fn dry_session(s: &DrySession<'_>, dir: &Path) -> Result<()> {
         opts,
         &Progress::auto(points.len()),
     )?;
-    print_session(dir, &report);
+    print_session(dir, &r);
     Ok(())
 }
 
-/// What `rigcal session` prints after a fresh run on the virtual clock.
-fn print_session(dir: &Path, r: &SessionReport) {
-    println!(
-        "session {}: {} points, {} measured, {} skipped, {} via rows, {} retries, {} faults cleared",
-        dir.display(), r.points, r.ok, r.skipped.len(), r.via, r.retries, r.faults_cleared.len()
-    );
+/// What `rigcal session` prints after a fresh dry run.
+fn print_session(dir: &Path, r: &crate::session::SessionReport) {
+    println!("session {}: {} points, {} measured, {} skipped, {} via rows, {} retries, {} faults cleared", dir.display(), r.points, r.ok, r.skipped.len(), r.via, r.retries, r.faults_cleared.len());
     for (p, why) in &r.skipped {
         println!("  point {p} skipped: {why}");
     }
@@ -350,38 +280,36 @@ fn print_session(dir: &Path, r: &SessionReport) {
     if let Some(rms) = r.registration_rms_mm {
         println!("registration RMS {rms:.3} mm (written to session.toml)");
     }
-    println!(
-        "rig time {:.0} s ({:.2} h) on the virtual clock: what the rig would have taken; wall time {:.2} s",
-        r.rig_time_s, r.rig_time_s / 3600.0, r.wall.as_secs_f64()
-    );
+    println!("rig time {:.0} s ({:.2} h) on the virtual clock: what the rig would have taken; wall time {:.2} s", r.rig_time_s, r.rig_time_s / 3600.0, r.wall.as_secs_f64());
 }
 
 /// Step 5: conventional identification as `rigcal identify` prints it (the demo's one call into
-/// identification's pipeline).
+/// the identification pipeline).
 fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
     use super::identify::{
         identify_robust, print_fit_summary, print_outliers, read_recording, Level,
     };
     let rec = read_recording(rig, recording)?;
-    let (chain, result, outliers, warning) = identify_robust(rig, &rec, Level::Full)?;
+    let (chain, result, outliers, notes) = identify_robust(rig, &rec, Level::Full)?;
+    let measurements = result.after.n;
     println!(
-        "recording {}: {} rows, {} measurements used",
+        "recording {}: {} rows, {measurements} measurements used",
         recording.display(),
-        rec.rows.len(),
-        result.after.n
+        rec.rows.len()
     );
     print_outliers(&outliers);
-    print!(
-        "{}",
-        super::parameter_table(crate::kinematics::Robot::layout(&chain), &result, None)
-    );
+    print!("{}", super::parameter_table(chain.layout(), &result, None));
     print_fit_summary(&result);
-    let provenance = Provenance {
-        recording: Some(recording.display().to_string()),
-        measurements: result.after.n,
-        notes: warning,
-    };
-    let mut file = ModelFile::constant(rig, &result, provenance);
+    let recording = Some(recording.display().to_string());
+    let mut file = ModelFile::constant(
+        rig,
+        &result,
+        Provenance {
+            recording,
+            measurements,
+            notes,
+        },
+    );
     file.outliers = outliers;
     file.save(out)?;
     println!("model written to {}", out.display());
@@ -391,22 +319,21 @@ fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
 /// Step 7: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
 fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
     let rec = super::identify::read_recording(rig, recording)?;
-    let report = crate::diagnosis::diagnose(
-        rig,
-        &rec,
-        &crate::diagnosis::Options {
-            heldout: Vec::new(),
-        },
-    )
-    .with_context(|| format!("diagnosing {}", recording.display()))?;
-    println!("recording {}", recording.display());
-    print!("{}", report.text());
+    let report = crate::diagnosis::diagnose(rig, &rec, &Default::default())
+        .with_context(|| format!("diagnosing {}", recording.display()))?;
+    println!(
+        "recording {}\n{}",
+        recording.display(),
+        report.text().trim_end()
+    );
     std::fs::write(json, serde_json::to_string_pretty(&report)?)
         .with_context(|| format!("writing {}", json.display()))?;
-    println!("report written to {}", json.display());
-    let written = crate::diagnosis::plots::write(rig, &rec, plots)
-        .with_context(|| format!("writing plots to {}", plots.display()))?;
-    println!("{written} plot(s) written to {}", plots.display());
+    let written = crate::diagnosis::plots::write(rig, &rec, plots)?;
+    println!(
+        "report written to {}\n{written} plot(s) written to {}",
+        json.display(),
+        plots.display()
+    );
     Ok(())
 }
 
@@ -427,14 +354,4 @@ fn clear_session_dir(dir: &Path) -> Result<()> {
         );
     }
     std::fs::remove_dir_all(dir).with_context(|| format!("removing {}", dir.display()))
-}
-
-fn summary_rows(s: &mut String, spec: &PathSpec, results: &[PathResult]) {
-    let _ = writeln!(s, "  {}", spec.name);
-    let _ = write!(s, "   ");
-    for r in results {
-        let st = r.stats();
-        let _ = write!(s, "  {} {:.4} / {:.4}", r.model, st.mean_mm, st.max_mm);
-    }
-    s.push('\n');
 }

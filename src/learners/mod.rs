@@ -146,16 +146,28 @@ pub enum LearnerKind {
 /// The learners' sizes, the paper's by default (seed 000, conventions §5): an FCMAC of 39
 /// sensors (17 on the input of the first joint's coordinate, 11 on each other) with c = (3, 3,
 /// 3), 2057 association cells; a CMAC at the same resolution with three layers.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, clap::Args)]
 pub struct LearnerSettings {
-    /// Fuzzy sensors per input (the CMAC's cells per dimension too); None: the paper's 17 on
-    /// the first joint's coordinate (q1 in joint space, azimuth in Cartesian space) and 11 on
-    /// the others.
+    /// FCMAC sensors per input (the CMAC's cells too) [default: 17 on the first joint's
+    /// coordinate, 11 on the others: 17,11,11 for joint, 11,17,11 for Cartesian division].
+    #[arg(long = "fcmac-sensors", value_name = "A,B,C", value_parser = three_counts)]
     pub sensors: Option<[usize; 3]>,
-    /// Sensors an input excites per dimension (the paper's c).
+    /// FCMAC sensors an input excites per dimension (the paper's c).
+    #[arg(long = "fcmac-c", value_name = "A,B,C", value_parser = three_counts, default_value = "3,3,3")]
     pub c: [usize; 3],
-    /// Overlapping layers of the CMAC (its generalisation width, as c is the FCMAC's).
+    /// CMAC layers (its generalisation width, as c is the FCMAC's).
+    #[arg(long, default_value_t = 3)]
     pub cmac_layers: usize,
+}
+
+/// Three counts separated by commas (`17,11,11`).
+fn three_counts(text: &str) -> Result<[usize; 3], String> {
+    let bad = || format!("`{text}`: give three whole numbers separated by commas");
+    let v: Vec<usize> = text
+        .split(',')
+        .map(|v| v.trim().parse().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
+    v.try_into().map_err(|_| bad())
 }
 
 impl Default for LearnerSettings {
