@@ -377,8 +377,8 @@ pub enum CalibrationError {
     Session {
         /// The session directory.
         dir: PathBuf,
-        /// Why it stopped.
-        source: crate::session::SessionError,
+        /// Why it stopped (boxed: a session error is large, and rare).
+        source: Box<crate::session::SessionError>,
     },
     /// A recording or session file could not be read.
     #[error("reading {}", path.display())]

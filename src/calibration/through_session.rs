@@ -172,7 +172,7 @@ pub fn through_session<'r>(
     );
     let stopped = |source| CalibrationError::Session {
         dir: PathBuf::from(dir),
-        source,
+        source: Box::new(source),
     };
     // A session fault ends the division early: it, not the division's view of it, is the error.
     if let Some(source) = measurer.into_error() {

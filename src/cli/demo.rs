@@ -178,7 +178,7 @@ fn rig_path_check(
         dry_session(
             REAL_RIG,
             REAL_SCENARIO,
-            Plan::File(&plan, registration.clone()),
+            Plan::File(&plan, registration),
             &dir,
         )?;
         recordings.push(Recording::read(&dir, rig.chain.joints())?);
