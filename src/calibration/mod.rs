@@ -14,6 +14,9 @@
 //! Nothing here prints: each call returns the figures a command line shows, with a `text()`
 //! that renders them as `rigcal` prints them.
 
+#![warn(missing_docs)]
+#![deny(clippy::unwrap_used)]
+
 pub mod compare;
 pub mod evaluate;
 mod neural;
@@ -524,4 +527,5 @@ fn design_basis(rig: &Rig, opts: &CalibrationOptions) -> Vec<usize> {
 }
 
 #[cfg(test)]
+#[allow(clippy::unwrap_used)] // a failing test says where
 mod tests;
