@@ -53,7 +53,7 @@ use std::time::Duration;
 #[derive(Debug, Clone, PartialEq, clap::Args)]
 pub struct CalibrationOptions {
     /// Division space.
-    #[arg(long = "division", value_enum, default_value_t = Space::Joint)]
+    #[arg(long = "division", value_name = "DIVISION", value_enum, default_value_t = Space::Joint)]
     pub space: Space,
     /// Demanded accuracy after compensation (mm).
     #[arg(skip = 0.1)]
