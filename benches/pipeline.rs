@@ -1,5 +1,5 @@
 //! Benchmarks of the calibration pipeline: identification from 2200 measurements (the paper's
-//! data set size) and compensation throughput. Run with `cargo bench --bench pipeline`.
+//! data set size), compensation throughput and the variable D-H pipeline as a library call. Run with `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::rngs::ChaCha8Rng;
@@ -87,26 +87,13 @@ fn compensation(c: &mut Criterion) {
     g.finish();
 }
 
-struct ScenarioMeasurer(rigcal::world::World, u64);
-
-impl rigcal::division::Measurer for ScenarioMeasurer {
-    fn measure(&mut self, q: &[f64]) -> Option<rigcal::identification::Observation> {
-        self.1 += 1;
-        let p = self.0.measure_at(q, self.1 as f64, self.1, 0).position?;
-        Some(rigcal::identification::Observation { q: q.to_vec(), p })
-    }
-}
-
 fn variable_model(c: &mut Criterion) {
-    use rigcal::division::{divide, DivisionOptions, Mode};
-    use rigcal::learners::{train, Learner, LearnerKind};
+    use rigcal::calibration::{calibrate, CalibrationOptions, Source};
+    use rigcal::learners::Learner;
+    use rigcal::model::ModelBody;
     let scenario =
         rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).expect("scenario");
     let rig = scenario.rig.clone();
-    let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let design = random_poses(rig.chain.joints(), rig.held(), 100, &mut rng);
-    let basis = analyse(&rig.chain, &design, &candidate_order(&rig)).basis;
-    let scale = rigcal::model::cep_scale(&rig, &basis);
     let mut g = c.benchmark_group("variable model (paper-sim, joint space)");
     g.sample_size(10);
     let mut fcmac = None;
@@ -115,18 +102,17 @@ fn variable_model(c: &mut Criterion) {
             format!("divide + identify + train FCMAC, demanded {accuracy} mm"),
             |b| {
                 b.iter(|| {
-                    let mut m = ScenarioMeasurer(scenario.world(), 0);
-                    let opts = DivisionOptions {
+                    // Test points as the division's defaults (10), the paper's pipeline otherwise.
+                    let opts = CalibrationOptions {
                         accuracy_mm: accuracy,
-                        ..DivisionOptions::default()
+                        test_points: 10,
+                        ..CalibrationOptions::default()
                     };
-                    let r = divide(&rig, &basis, Mode::Planning(&mut m), &opts, |_, _| {})
-                        .expect("divide");
-                    let init: Vec<f64> = basis
-                        .iter()
-                        .map(|&i| r.conventional.params.get(i))
-                        .collect();
-                    fcmac = train(LearnerKind::Fcmac, &r.tree, &init, &scale);
+                    let cal =
+                        calibrate(&rig, Source::Scenario(&scenario), &opts).expect("calibrate");
+                    if let ModelBody::Variable { learner, .. } = cal.model.model {
+                        fcmac = learner;
+                    }
                 })
             },
         );
@@ -135,6 +121,7 @@ fn variable_model(c: &mut Criterion) {
     let Some(Learner::Fcmac(f)) = fcmac else {
         return;
     };
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
     let points: Vec<[f64; 3]> = random_poses(rig.chain.joints(), rig.held(), 1000, &mut rng)
         .iter()
         .map(|q| [q[0], q[1], q[2]])

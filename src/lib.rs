@@ -11,6 +11,7 @@
 //! | [`stats`] | distribution functions (F, χ²₃, erfc) and robust scales (median, MAD) |
 //! | [`identification`] | identifiability, least squares, registration |
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
+//! | [`calibration`] | the variable D-H pipeline (division → learner → model), its evaluation along paths, the comparison with conventional and neural calibration |
 //! | [`model`] | the versioned model file |
 //! | [`neural`] | neuro-kinematic calibration (seed 001): the network, schemes 2 and 4, a network as a rig's error model |
 //! | [`world`] | the simulated truth (read only by simulators and emulators) |
@@ -18,6 +19,7 @@
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
 //! | [`devices`] | arm, table and panel drivers, their emulators, safety wrappers, the factory |
 //! | [`reproduce`] | not the calibration tool: the papers' robots, their other schemes and tables, beside the papers' numbers (`rigcal reproduce`) |
+pub mod calibration;
 pub mod cli;
 pub mod compensation;
 pub mod devices;

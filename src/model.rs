@@ -173,6 +173,14 @@ pub struct DivisionSummary {
     pub test_measurements: usize,
     /// `planning` or `offline`.
     pub mode: String,
+    /// Random poses the identifiable basis was chosen on (older files: the paper's 100).
+    #[serde(default = "paper_design_poses")]
+    pub design_poses: usize,
+}
+
+/// The design poses of files written before they were recorded.
+fn paper_design_poses() -> usize {
+    100
 }
 
 /// A model file.

@@ -203,6 +203,20 @@ pub fn evaluate_path(
     out
 }
 
+/// A path's name and, on the next line, every model's mean / max error (mm).
+pub fn mean_max_rows(path: &str, results: &[PathResult]) -> String {
+    let mut s = format!("  {path}\n   ");
+    for r in results {
+        let st = r.stats();
+        s.push_str(&format!(
+            "  {} {:.4} / {:.4}",
+            r.model, st.mean_mm, st.max_mm
+        ));
+    }
+    s.push('\n');
+    s
+}
+
 const COLOURS: [RGBColor; 6] = [
     RGBColor(120, 120, 120),
     RGBColor(31, 119, 180),

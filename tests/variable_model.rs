@@ -1,6 +1,6 @@
 //! The variable D-H parameter model on seed 000's simulation scenario, through the command line
 //! a user runs: `rigcal calibrate` (planning mode against `sim/paper-sim.toml`) then
-//! `rigcal evaluate` along the paper's paths.
+//! `rigcal evaluate` along the paper's paths; and the same pipeline as library calls.
 
 use std::collections::HashMap;
 use std::process::Command;
@@ -168,5 +168,41 @@ fn an_unmeasurable_region_on_the_path_is_generalised_by_the_fcmac() {
     assert!(
         max < 0.1 && failures == 0,
         "FCMAC max {max} on the Fig. 8 case"
+    );
+}
+
+/// The pipeline as library calls (no command-line words): calibrate on the scenario, save and
+/// reload the model, evaluate along the Fig. 6 path.
+#[test]
+fn the_pipeline_as_library_calls_meets_the_papers_accuracy_on_the_fig6_path() {
+    use rigcal::calibration::{self, CalibrationOptions, PathChoice, PathOptions, Source};
+    use std::path::Path;
+    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).unwrap();
+    let opts = CalibrationOptions::default();
+    let cal = calibration::calibrate(&sc.rig, Source::Scenario(&sc), &opts).unwrap();
+    assert!(cal.text().contains("paper: 110 regions, 2200 measurements"));
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("m.json");
+    cal.model.save(&file).unwrap();
+    let loaded = rigcal::model::ModelFile::load(&file).unwrap();
+    let paths = calibration::build_paths(&loaded.rig, &[PathChoice::Fig6], &PathOptions::default())
+        .unwrap();
+    let names = calibration::PAPER_TRACED_CEPS.map(String::from);
+    let trace = calibration::traced_ceps(&loaded.rig, &names).unwrap();
+    let results = calibration::evaluate(&loaded, &file, &sc, &paths, &trace).unwrap();
+    let max = |model: &str| {
+        let r = results[0].iter().find(|r| r.model == model).unwrap();
+        assert_eq!(r.failures, 0, "{model}");
+        r.stats().max_mm
+    };
+    assert!((0.4..=1.2).contains(&max("uncalibrated")));
+    assert!(max("conventional") < 0.2);
+    for model in ["regions", "fcmac"] {
+        assert!(max(model) < 0.1, "{model}: {}", max(model));
+    }
+    let table = calibration::path_table(&paths[0], &results[0], &trace);
+    assert!(
+        table.contains("Δθ1 (deg) Δd1 (mm) Δa1 (mm) Δα1 (deg)"),
+        "{table}"
     );
 }

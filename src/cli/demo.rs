@@ -1,4 +1,4 @@
-//! `rigcal demo`: the whole job on simulated devices, through the same commands a user types.
+//! `rigcal demo`: the whole job on simulated devices, step by step through the library.
 //!
 //! 1. A dry-run session of seed 000's simulation (`sim/paper-sim.toml`) on the ideal-instrument
 //!    rig (conventions §2): plan, drivers and emulators on the virtual clock, every row on disk.
@@ -12,13 +12,14 @@
 //!
 //! Everything goes to `--out`; `summary.txt` there repeats the closing table.
 
-use super::evaluate::{evaluate, fig6};
+use crate::calibration::{self, rig_check, CalibrationOptions};
 use crate::kinematics::Robot;
-use crate::report::{joint_path, spherical_path, PathResult, PathSpec};
+use crate::model::{ModelFile, Provenance};
+use crate::recording::{Recording, RegistrationInfo, SessionInfo};
+use crate::report::{mean_max_rows, PathResult, PathSpec};
 use crate::rig::Rig;
-use crate::session::read_plan;
+use crate::session::{read_plan, write_plan, SessionOptions};
 use anyhow::{bail, Context, Result};
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 const PAPER_RIG: &str = "rigs/rv-m2-ideal.toml";
@@ -56,304 +57,288 @@ pub fn run(a: Args) -> Result<()> {
     anyhow::ensure!(a.points >= 100, "--points must be at least 100");
     anyhow::ensure!(a.rig_points >= 60, "--rig-points must be at least 60");
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let out = |name: &str| a.out.join(name);
     for dir in ["paper", "rig"] {
-        clear_session_dir(&out(dir))?;
+        clear_session_dir(&a.out.join(dir))?;
     }
-    let seed = a.seed.to_string();
-
-    heading("1. Dry-run session: seed 000's simulation on the ideal-instrument RV-M2");
     let started = std::time::Instant::now();
-    step(
-        &[
-            "session",
-            "--rig",
-            PAPER_RIG,
-            "--sim",
-            PAPER_SCENARIO,
-            "--points",
-            &a.points.to_string(),
-            "--seed",
-            &seed,
-            "--out",
-        ],
-        &out("paper"),
-    )?;
-
-    heading("2. Variable D-H model from the recording: division, CEPs per region, FCMAC");
-    step(
-        &[
-            "calibrate",
-            "--rig",
-            PAPER_RIG,
-            "--accuracy-mm",
-            &a.accuracy_mm.to_string(),
-            "--seed",
-            &seed,
-            "--recording",
-            &path_str(&out("paper")),
-            "--out",
-        ],
-        &out("paper-model.json"),
-    )?;
-
-    heading("3. Evaluation along the paper's paths (true simulated arm vs target)");
-    let paper_rig = Rig::load(Path::new(PAPER_RIG))?;
-    let paper_paths = vec![
-        fig6(&paper_rig, 101),
-        spherical_path(
-            &paper_rig,
-            "Fig. 7 spherical path",
-            [640.0, 20.0, 0.0],
-            [740.0, 125.0, -20.0],
-            101,
-        )?,
-    ];
-    let paper_results = evaluate(
-        &out("paper-model.json"),
-        Path::new(PAPER_SCENARIO),
-        &paper_paths,
-        Some(&out("paper-plots")),
-    )?;
-
-    heading("4. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
-    step(
-        &[
-            "session",
-            "--rig",
-            REAL_RIG,
-            "--sim",
-            REAL_SCENARIO,
-            "--points",
-            &a.rig_points.to_string(),
-            "--seed",
-            &seed,
-            "--out",
-        ],
-        &out("rig"),
-    )?;
-    heading("5. Conventional identification from the rig recording");
-    step(
-        &[
-            "identify",
-            "--rig",
-            REAL_RIG,
-            "--recording",
-            &path_str(&out("rig")),
-            "--out",
-        ],
-        &out("rig-model.json"),
-    )?;
-    let real_rig = Rig::load(Path::new(REAL_RIG))?;
-    let rig_path = measurable_path(&real_rig, &out("rig").join("plan.csv"))?;
-    heading(&format!(
-        "6. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
-        rig_path.name
-    ));
-    let rig_results = rig_path_check(&real_rig, &out("rig-model.json"), &rig_path, &a.out)?;
-    heading("7. Diagnosis: what the geometric model leaves out of the rig recording");
-    step(
-        &[
-            "diagnose",
-            "--rig",
-            REAL_RIG,
-            "--recording",
-            &path_str(&out("rig")),
-            "--plots",
-            &path_str(&out("rig-plots")),
-            "--json",
-        ],
-        &out("rig-diagnosis.json"),
-    )?;
-
-    let mut summary = String::new();
-    let _ = writeln!(
-        summary,
-        "rigcal demo summary (seed {}, {:.1} s wall)",
+    let paper = paper_steps(&a)?;
+    let rig = rig_steps(&a)?;
+    let mut summary = format!(
+        "rigcal demo summary (seed {}, {:.1} s wall)\npaper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm\n",
         a.seed,
         started.elapsed().as_secs_f64()
     );
-    let _ = writeln!(
-        summary,
-        "paper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm"
-    );
-    for (spec, results) in paper_paths.iter().zip(&paper_results) {
-        summary_rows(&mut summary, spec, results);
+    for (name, results) in &paper {
+        summary.push_str(&mean_max_rows(name, results));
     }
-    let _ = writeln!(
-        summary,
-        "real rig: distance to target measured by the rig itself, mean / max in mm"
-    );
-    summary_rows(&mut summary, &rig_path, &rig_results);
-    let _ = writeln!(summary, "files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt", a.out.display());
+    summary.push_str("real rig: distance to target measured by the rig itself, mean / max in mm\n");
+    summary.push_str(&mean_max_rows(&rig.0, &rig.1));
+    summary.push_str(&format!("files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt\n", a.out.display()));
     heading("Summary");
     print!("{summary}");
-    let file = out("summary.txt");
-    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))?;
-    Ok(())
+    let file = a.out.join("summary.txt");
+    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))
+}
+
+/// Steps 1–3 on the paper's scenario; the results per path (by name).
+fn paper_steps(a: &Args) -> Result<Vec<(String, Vec<PathResult>)>> {
+    let out = |name: &str| a.out.join(name);
+    let rig = Rig::load(Path::new(PAPER_RIG))?;
+    heading("1. Dry-run session: seed 000's simulation on the ideal-instrument RV-M2");
+    dry_session(
+        PAPER_RIG,
+        PAPER_SCENARIO,
+        Plan::Points(a.points, a.seed),
+        &out("paper"),
+    )?;
+    heading("2. Variable D-H model from the recording: division, CEPs per region, FCMAC");
+    let opts = CalibrationOptions {
+        accuracy_mm: a.accuracy_mm,
+        seed: a.seed,
+        ..Default::default()
+    };
+    let model = out("paper-model.json");
+    super::calibrate::offline(&rig, &out("paper"), &opts)?
+        .model
+        .save(&model)?;
+    println!("model written to {}", model.display());
+    heading("3. Evaluation along the paper's paths (true simulated arm vs target)");
+    let paths = vec![
+        calibration::fig6_path(&rig, 101),
+        calibration::fig7_path(&rig, 101)?,
+    ];
+    let traced = calibration::PAPER_TRACED_CEPS.map(String::from);
+    let plots = out("paper-plots");
+    let results = super::evaluate::evaluate(
+        &model,
+        Path::new(PAPER_SCENARIO),
+        &paths,
+        &traced,
+        Some(&plots),
+    )?;
+    Ok(paths.into_iter().map(|p| p.name).zip(results).collect())
+}
+
+/// Steps 4–7 on the real rig's constraints; the measured path's name and results.
+fn rig_steps(a: &Args) -> Result<(String, Vec<PathResult>)> {
+    let out = |name: &str| a.out.join(name);
+    let rig = Rig::load(Path::new(REAL_RIG))?;
+    heading("4. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
+    dry_session(
+        REAL_RIG,
+        REAL_SCENARIO,
+        Plan::Points(a.rig_points, a.seed),
+        &out("rig"),
+    )?;
+    heading("5. Conventional identification from the rig recording");
+    identify(&rig, &out("rig"), &out("rig-model.json"))?;
+    let planned = read_plan(&out("rig").join("plan.csv"), &rig)?;
+    let path = rig_check::measurable_path(&rig, &planned, 101).context(
+        "no two planned points of the rig session are joined by a measurable straight joint path",
+    )?;
+    heading(&format!(
+        "6. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
+        path.name
+    ));
+    let results = rig_path_check(&rig, &out("rig-model.json"), &path, &a.out)?;
+    heading("7. Diagnosis: what the geometric model leaves out of the rig recording");
+    diagnose(
+        &rig,
+        &out("rig"),
+        &out("rig-plots"),
+        &out("rig-diagnosis.json"),
+    )?;
+    Ok((path.name, results))
 }
 
 /// Runs the path twice on the rig — at the nominal commands and at the commands the identified
-/// model compensates — each as a session reusing the rig session's registration (one frame),
-/// and returns the measured distance to the target per point. On the real rig this is how a
-/// model is checked: the truth is what the instrument measures.
+/// model compensates — each as a session reusing the rig session's registration (one frame).
+/// On the real rig this is how a model is checked: the truth is what the instrument measures.
 fn rig_path_check(
     rig: &Rig,
     model_path: &Path,
     path: &PathSpec,
     out: &Path,
 ) -> Result<Vec<PathResult>> {
-    let loaded = crate::model::ModelFile::load(model_path)?;
-    let models = loaded.file.error_models(rig, model_path)?;
+    let models = ModelFile::load(model_path)?
+        .file
+        .error_models(rig, model_path)?;
     let (name, model) = models.first().context("the model file holds no model")?;
-    let nominal = crate::kinematics::ErrorParams::zeros(rig.chain.layout());
-    let targets: Vec<nalgebra::Vector3<f64>> = path
-        .points
-        .iter()
-        .map(|q| rig.chain.position(q, &nominal))
-        .collect();
-    let opts = crate::compensation::CompensationOptions::default();
-    let compensated = path
-        .points
-        .iter()
-        .zip(&targets)
-        .map(|(q, t)| {
-            crate::compensation::compensate_from(
-                &rig.chain,
-                model.as_ref(),
-                t,
-                rig.held(),
-                q.clone(),
-                &opts,
-            )
-            .map(|c| c.command)
-            .with_context(|| format!("compensating the target {t:?}"))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let mut results = Vec::new();
-    for (label, commands) in [
-        ("uncalibrated", &path.points),
-        (name.as_str(), &compensated),
+    let commands = rig_check::path_commands(rig, model.as_ref(), path)?;
+    let registration = rig_check::registration_of(rig, &out.join("rig"))?;
+    let mut recordings = Vec::new();
+    for (tag, points) in [
+        ("nominal", &commands.nominal),
+        ("compensated", &commands.compensated),
     ] {
-        let tag = if label == "uncalibrated" {
-            "nominal"
-        } else {
-            "compensated"
-        };
-        let plan_file = out.join(format!("rig-path-{tag}.csv"));
-        let points: Vec<crate::session::PlannedPoint> = commands
-            .iter()
-            .enumerate()
-            .map(|(k, q)| crate::session::PlannedPoint {
-                point: k + 1,
-                region: "path".into(),
-                q: q.clone(),
-                table_mm: crate::session::plan::table_target(rig, q).unwrap_or_default(),
-            })
-            .collect();
-        crate::session::write_plan(&plan_file, rig, &points)?;
+        let plan = out.join(format!("rig-path-{tag}.csv"));
+        write_plan(&plan, rig, &rig_check::path_plan(rig, points))?;
         let dir = out.join(format!("rig-path-{tag}"));
         clear_session_dir(&dir)?;
-        step(
-            &[
-                "session",
-                "--rig",
-                REAL_RIG,
-                "--sim",
-                REAL_SCENARIO,
-                "--plan",
-                &path_str(&plan_file),
-                "--registration-from",
-                &path_str(&out.join("rig")),
-                "--out",
-            ],
+        dry_session(
+            REAL_RIG,
+            REAL_SCENARIO,
+            Plan::File(&plan, registration),
             &dir,
         )?;
-        let rec = crate::recording::Recording::read(&dir, rig.chain.joints())?;
-        let measured: Vec<&crate::recording::Measurement> = rec
-            .rows
-            .iter()
-            .filter(|m| {
-                m.region.as_deref() == Some("path") && m.status != crate::recording::Status::Via
-            })
-            .collect();
-        let errors = measured
-            .iter()
-            .zip(&targets)
-            .map(|(m, t)| m.position.map_or(f64::NAN, |p| (p - t).norm()))
-            .collect();
-        results.push(PathResult {
-            model: label.to_string(),
-            errors,
-            traces: Vec::new(),
-            failures: 0,
-        });
+        recordings.push(Recording::read(&dir, rig.chain.joints())?);
     }
-    let plots = out.join("rig-plots");
-    std::fs::create_dir_all(&plots)?;
-    let file = plots.join("rig-path-measured-errors.svg");
-    crate::report::plot_errors(
-        &file,
-        &format!("distance to target measured by the rig along {}", path.name),
-        &results,
-    )?;
-    println!(
-        "{} (101 points), measured by the rig (panel quantisation and table accuracy included):",
-        path.name
-    );
-    for r in &results {
-        let st = r.stats();
-        println!(
-            "  {:<14} mean {:.4} mm   max {:.4} mm   {} point(s) not measured",
-            r.model,
-            st.mean_mm,
-            st.max_mm,
-            r.errors.iter().filter(|e| e.is_nan()).count()
-        );
-    }
-    println!("  plot: {}", file.display());
-    let floor = resolution_floor(rig, &compensated);
-    println!(
-        "  the controller's {}° command resolution alone moves the compensated tip by {:.4} mm mean, {:.4} mm max: the floor of joint-command compensation on this rig",
-        rig.devices.clone().unwrap_or_default().arm.resolution_deg,
-        floor.iter().sum::<f64>() / floor.len().max(1) as f64,
-        floor.iter().copied().fold(0.0, f64::max)
-    );
-    Ok(results)
+    let check =
+        rig_check::RigPathCheck::new(rig, path, &commands, name, &recordings[0], &recordings[1]);
+    std::fs::create_dir_all(out.join("rig-plots"))?;
+    let plot = out.join("rig-plots").join("rig-path-measured-errors.svg");
+    check.plot(&plot)?;
+    print!("{}", check.text(&plot));
+    Ok(check.results)
 }
 
-/// How far rounding each command to the arm controller's resolution moves the nominal tip (mm).
-fn resolution_floor(rig: &Rig, commands: &[Vec<f64>]) -> Vec<f64> {
-    let step = rig
-        .devices
-        .clone()
-        .unwrap_or_default()
-        .arm
-        .resolution_deg
-        .to_radians();
-    let nominal = crate::kinematics::ErrorParams::zeros(rig.chain.layout());
-    commands
-        .iter()
-        .map(|q| {
-            let rounded: Vec<f64> = q.iter().map(|v| (v / step).round() * step).collect();
-            (rig.chain.position(&rounded, &nominal) - rig.chain.position(q, &nominal)).norm()
-        })
-        .collect()
+/// What a dry-run session measures.
+enum Plan<'a> {
+    /// This many points planned here from a seed, the dropped candidates reported; then a
+    /// registration.
+    Points(usize, u64),
+    /// The points of a plan file, in the frame of this registration.
+    File(&'a Path, RegistrationInfo),
+}
+
+/// Runs a dry-run session into `dir` as `rigcal session --sim` does: emulators on the virtual
+/// clock. The demo's only calls into the session API.
+fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Result<()> {
+    use crate::session::{
+        estimate, registration_points, run_session, ContactSettings, Progress, RigSpeeds,
+    };
+    let rig = Rig::load(Path::new(rig_file))?;
+    let sc =
+        super::session::load_scenario(&rig, Path::new(rig_file), Some(Path::new(scenario)), None)?
+            .context("a dry run needs its scenario")?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let plan_path = dir.join("plan.csv");
+    let mut opts = SessionOptions::new(dir);
+    let (points, registration) = match plan {
+        Plan::Points(n, seed) => {
+            let p = crate::session::plan(&rig, &super::plan::options(n, 8, 50, seed))?;
+            super::plan::report_dropped(&rig, &p, &plan_path)?;
+            opts.seed = seed;
+            (
+                p.points,
+                registration_points(&rig, opts.registration_points, seed),
+            )
+        }
+        Plan::File(file, registration) => {
+            opts.seed = sc.seed;
+            opts.registration = Some(registration);
+            (read_plan(file, &rig)?, Vec::new())
+        }
+    };
+    write_plan(&plan_path, &rig, &points)?;
+    // Measured as read back from the file, as a session does.
+    let points = read_plan(&plan_path, &rig)?;
+    let all = [registration, points.clone()].concat();
+    println!(
+        "{}",
+        super::plan::describe(&estimate(
+            &rig,
+            &all,
+            &RigSpeeds::of(&rig),
+            &ContactSettings::default()
+        ))
+    );
+    let (devices, world) = super::session::open_rig(&rig, Some(&sc), false)?;
+    opts.fsync = !devices.clock.is_virtual();
+    let notes = format!(
+        "rigcal session: {} points, dry run on the virtual clock",
+        points.len()
+    );
+    opts.info = SessionInfo {
+        rig: Some(rig_file.into()),
+        scenario: Some(scenario.into()),
+        seed: Some(sc.seed),
+        notes: Some(notes),
+        ..Default::default()
+    };
+    let r = run_session(
+        &rig,
+        devices,
+        world,
+        &points,
+        opts,
+        &Progress::auto(points.len()),
+    )?;
+    print_session(dir, &r);
+    Ok(())
+}
+
+/// What `rigcal session` prints after a fresh dry run.
+fn print_session(dir: &Path, r: &crate::session::SessionReport) {
+    println!("session {}: {} points, {} measured, {} skipped, {} via rows, {} retries, {} faults cleared", dir.display(), r.points, r.ok, r.skipped.len(), r.via, r.retries, r.faults_cleared.len());
+    for (p, why) in &r.skipped {
+        println!("  point {p} skipped: {why}");
+    }
+    for f in &r.faults_cleared {
+        println!("  cleared: {f}");
+    }
+    if let Some(rms) = r.registration_rms_mm {
+        println!("registration RMS {rms:.3} mm (written to session.toml)");
+    }
+    println!("rig time {:.0} s ({:.2} h) on the virtual clock: what the rig would have taken; wall time {:.2} s", r.rig_time_s, r.rig_time_s / 3600.0, r.wall.as_secs_f64());
+}
+
+/// Step 5: conventional identification as `rigcal identify` prints it (the demo's one call into
+/// the identification pipeline).
+fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
+    use super::identify::{
+        identify_robust, print_fit_summary, print_outliers, read_recording, Level,
+    };
+    let rec = read_recording(rig, recording)?;
+    let (chain, result, outliers, notes) = identify_robust(rig, &rec, Level::Full)?;
+    let measurements = result.after.n;
+    println!(
+        "recording {}: {} rows, {measurements} measurements used",
+        recording.display(),
+        rec.rows.len()
+    );
+    print_outliers(&outliers);
+    print!("{}", super::parameter_table(chain.layout(), &result, None));
+    print_fit_summary(&result);
+    let recording = Some(recording.display().to_string());
+    let mut file = ModelFile::constant(
+        rig,
+        &result,
+        Provenance {
+            recording,
+            measurements,
+            notes,
+        },
+    );
+    file.outliers = outliers;
+    file.save(out)?;
+    println!("model written to {}", out.display());
+    Ok(())
+}
+
+/// Step 7: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
+fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
+    let rec = super::identify::read_recording(rig, recording)?;
+    let report = crate::diagnosis::diagnose(rig, &rec, &Default::default())
+        .with_context(|| format!("diagnosing {}", recording.display()))?;
+    println!(
+        "recording {}\n{}",
+        recording.display(),
+        report.text().trim_end()
+    );
+    std::fs::write(json, serde_json::to_string_pretty(&report)?)
+        .with_context(|| format!("writing {}", json.display()))?;
+    let written = crate::diagnosis::plots::write(rig, &rec, plots)?;
+    println!(
+        "report written to {}\n{written} plot(s) written to {}",
+        json.display(),
+        plots.display()
+    );
+    Ok(())
 }
 
 fn heading(text: &str) {
     println!("\n== {text}");
-}
-
-fn path_str(p: &Path) -> String {
-    p.display().to_string()
-}
-
-/// Runs a subcommand whose last word is `last` (an output path).
-fn step(words: &[&str], last: &Path) -> Result<()> {
-    let mut w: Vec<String> = words.iter().map(|s| s.to_string()).collect();
-    w.push(path_str(last));
-    super::run_words(&w).with_context(|| format!("`rigcal {}`", w.join(" ")))
 }
 
 /// Removes a session directory an earlier demo wrote (it holds a journal); refuses anything else.
@@ -369,57 +354,4 @@ fn clear_session_dir(dir: &Path) -> Result<()> {
         );
     }
     std::fs::remove_dir_all(dir).with_context(|| format!("removing {}", dir.display()))
-}
-
-fn summary_rows(s: &mut String, spec: &PathSpec, results: &[PathResult]) {
-    let _ = writeln!(s, "  {}", spec.name);
-    let _ = write!(s, "   ");
-    for r in results {
-        let st = r.stats();
-        let _ = write!(s, "  {} {:.4} / {:.4}", r.model, st.mean_mm, st.max_mm);
-    }
-    s.push('\n');
-}
-
-/// A straight joint path of 101 points between two planned points of the rig session whose every
-/// point the rig can measure: the longest such among the first planned points.
-fn measurable_path(rig: &Rig, plan: &Path) -> Result<PathSpec> {
-    let pts: Vec<Vec<f64>> = read_plan(plan, rig)?
-        .into_iter()
-        .filter(|p| p.region != crate::session::plan::REFERENCE_REGION)
-        .take(80)
-        .map(|p| p.q)
-        .collect();
-    let nominal = crate::kinematics::ErrorParams::zeros(rig.chain.layout());
-    let joints = rig.chain.joints();
-    let mut best: Option<(f64, PathSpec)> = None;
-    for (i, a) in pts.iter().enumerate() {
-        for b in &pts[i + 1..] {
-            let length = (rig.chain.position(a, &nominal) - rig.chain.position(b, &nominal)).norm();
-            if best.as_ref().is_some_and(|(l, _)| *l >= length) {
-                continue;
-            }
-            let deg = |q: &[f64]| -> Vec<f64> {
-                rig.moving_joints()
-                    .iter()
-                    .map(|&j| joints[j].kind.to_file_units(q[j]))
-                    .collect()
-            };
-            let (da, db) = (deg(a), deg(b));
-            let fmt = |v: &[f64]| {
-                v.iter()
-                    .map(|x| format!("{x:.1}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            let name = format!("joint path ({}) → ({})", fmt(&da), fmt(&db));
-            let spec = joint_path(rig, &name, &da, &db, 101);
-            if spec.points.iter().all(|q| rig.measurable(q).is_ok()) {
-                best = Some((length, spec));
-            }
-        }
-    }
-    best.map(|(_, s)| s).context(
-        "no two planned points of the rig session are joined by a measurable straight joint path",
-    )
 }

@@ -98,14 +98,6 @@ pub fn main() -> ExitCode {
     }
 }
 
-/// Runs a subcommand given as command-line words (without the program name): `rigcal demo`
-/// chains the same commands a user would type.
-pub(crate) fn run_words(words: &[String]) -> anyhow::Result<()> {
-    let cli =
-        Cli::try_parse_from(std::iter::once("rigcal".to_string()).chain(words.iter().cloned()))?;
-    dispatch(cli.command)
-}
-
 fn dispatch(command: Command) -> anyhow::Result<()> {
     match command {
         Command::Demo(a) => demo::run(a),

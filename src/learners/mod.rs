@@ -11,7 +11,7 @@ mod fcmac;
 pub use cmac::{Cmac, CmacConfig};
 pub use fcmac::{Fcmac, FcmacConfig};
 
-use crate::division::{DivisionSpace, RegionTree};
+use crate::division::{DivisionSpace, RegionTree, Space};
 use crate::kinematics::{ErrorModel, ErrorParams};
 use serde::{Deserialize, Serialize};
 
@@ -143,26 +143,139 @@ pub enum LearnerKind {
     NnInverse,
 }
 
-/// Trains a learner of `kind` on the leaves of `tree`; weights start at `init` (conventional
-/// CEPs, internal units); `scale` converts CEPs to output units. The input with 17 sensors is the
-/// first joint's coordinate (q1 in joint space, azimuth in Cartesian space, which equals q1).
-pub fn train(kind: LearnerKind, tree: &RegionTree, init: &[f64], scale: &[f64]) -> Option<Learner> {
+/// The learners' sizes, the paper's by default (seed 000, conventions §5): an FCMAC of 39
+/// sensors (17 on the input of the first joint's coordinate, 11 on each other) with c = (3, 3,
+/// 3), 2057 association cells; a CMAC at the same resolution with three layers.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, clap::Args)]
+pub struct LearnerSettings {
+    /// FCMAC sensors per input (the CMAC's cells too) [default: 17 on the first joint's
+    /// coordinate, 11 on the others: 17,11,11 for joint, 11,17,11 for Cartesian division].
+    #[arg(long = "fcmac-sensors", value_name = "A,B,C", value_parser = three_counts)]
+    pub sensors: Option<[usize; 3]>,
+    /// FCMAC sensors an input excites per dimension (the paper's c).
+    #[arg(long = "fcmac-c", value_name = "A,B,C", value_parser = three_counts, default_value = "3,3,3")]
+    pub c: [usize; 3],
+    /// CMAC layers (its generalisation width, as c is the FCMAC's).
+    #[arg(long, default_value_t = 3)]
+    pub cmac_layers: usize,
+}
+
+/// Three counts separated by commas (`17,11,11`).
+fn three_counts(text: &str) -> Result<[usize; 3], String> {
+    let bad = || format!("`{text}`: give three whole numbers separated by commas");
+    let v: Vec<usize> = text
+        .split(',')
+        .map(|v| v.trim().parse().map_err(|_| bad()))
+        .collect::<Result<_, _>>()?;
+    v.try_into().map_err(|_| bad())
+}
+
+impl Default for LearnerSettings {
+    fn default() -> Self {
+        Self {
+            sensors: None,
+            c: [3, 3, 3],
+            cmac_layers: 3,
+        }
+    }
+}
+
+/// Learner settings that cannot make a network.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum SettingsError {
+    /// An input with fewer than two sensors has no spacing to place them by.
+    #[error("FCMAC sensors {sensors:?}: every input needs at least 2")]
+    TooFewSensors {
+        /// The sensor counts.
+        sensors: [usize; 3],
+    },
+    /// c outside 1..=sensors on some input.
+    #[error("FCMAC c = {c:?} with sensors {sensors:?}: each c must be at least 1 and at most its input's sensors")]
+    BadC {
+        /// The excited counts.
+        c: [usize; 3],
+        /// The sensor counts.
+        sensors: [usize; 3],
+    },
+    /// A CMAC needs at least one layer.
+    #[error("CMAC layers {0}: at least 1")]
+    NoLayers(usize),
+}
+
+impl LearnerSettings {
+    /// Sensors per input for a division space: the settings' own, or the paper's.
+    pub fn sensors_for(&self, space: Space) -> [usize; 3] {
+        self.sensors.unwrap_or_else(|| {
+            let mut cells = [11; 3];
+            cells[first_joint_input(space)] = 17;
+            cells
+        })
+    }
+
+    /// The FCMAC these settings make for a division space.
+    pub fn fcmac_config(&self, space: Space) -> FcmacConfig {
+        FcmacConfig {
+            cells: self.sensors_for(space),
+            c: self.c,
+            ..FcmacConfig::paper(first_joint_input(space))
+        }
+    }
+
+    /// The CMAC these settings make for a division space.
+    pub fn cmac_config(&self, space: Space) -> CmacConfig {
+        CmacConfig {
+            layers: self.cmac_layers,
+            ..CmacConfig::matching(self.sensors_for(space))
+        }
+    }
+
+    /// Checks that the settings make a network.
+    pub fn check(&self) -> Result<(), SettingsError> {
+        let sensors = self.sensors_for(Space::Joint);
+        if sensors.iter().any(|&n| n < 2) {
+            return Err(SettingsError::TooFewSensors { sensors });
+        }
+        if self.c.iter().zip(&sensors).any(|(&c, &n)| c == 0 || c > n) {
+            return Err(SettingsError::BadC { c: self.c, sensors });
+        }
+        if self.cmac_layers == 0 {
+            return Err(SettingsError::NoLayers(self.cmac_layers));
+        }
+        Ok(())
+    }
+}
+
+/// The input that carries the first joint's coordinate: q1 in joint space, the azimuth (which
+/// equals q1) in Cartesian space.
+fn first_joint_input(space: Space) -> usize {
+    match space {
+        Space::Joint => 0,
+        Space::Cartesian => 1,
+    }
+}
+
+/// Trains a learner of `kind` with `settings` on the leaves of `tree`; weights start at `init`
+/// (conventional CEPs, internal units); `scale` converts CEPs to output units.
+pub fn train(
+    kind: LearnerKind,
+    settings: &LearnerSettings,
+    tree: &RegionTree,
+    init: &[f64],
+    scale: &[f64],
+) -> Option<Learner> {
     let init_scaled: Vec<f64> = init.iter().zip(scale).map(|(v, s)| v * s).collect();
-    let widest = match tree.space {
-        crate::division::Space::Joint => 0,
-        crate::division::Space::Cartesian => 1,
-    };
     match kind {
         LearnerKind::None | LearnerKind::NnDirect | LearnerKind::NnInverse => None,
         LearnerKind::Fcmac => {
-            let config = FcmacConfig::paper(widest);
+            let config = settings.fcmac_config(tree.space);
             let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n - 1));
             let mut f = Fcmac::new(config, tree.full, &init_scaled);
             f.train(&patterns);
             Some(Learner::Fcmac(f))
         }
         LearnerKind::Cmac => {
-            let config = CmacConfig::matching(FcmacConfig::paper(widest).cells);
+            let config = settings.cmac_config(tree.space);
             let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n + 1));
             let mut c = Cmac::new(config, tree.full, &init_scaled);
             c.train(&patterns);

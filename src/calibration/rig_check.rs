@@ -1,0 +1,248 @@
+//! Checking a model on the rig itself, where the truth is what the instrument measures: a path
+//! the rig can measure at every point, the nominal and the compensated commands along it (each
+//! measured as a session of its own), the measured distance to each target, and the floor the
+//! controller's command resolution sets.
+
+use super::CalibrationError;
+use crate::compensation::{compensate_from, CompensationOptions};
+use crate::kinematics::{ErrorModel, ErrorParams, Robot};
+use crate::recording::{Recording, RegistrationInfo, Status};
+use crate::report::{joint_path, plot_errors, PathError, PathResult, PathSpec};
+use crate::rig::Rig;
+use crate::session::plan::{table_target, REFERENCE_REGION};
+use crate::session::PlannedPoint;
+use nalgebra::Vector3;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// Region id of the path's points in their sessions.
+pub const PATH_REGION: &str = "path";
+
+/// The longest straight joint path of `points` points between two of the first 80 planned
+/// points of a rig session (drift references left out) whose every point the rig can measure.
+pub fn measurable_path(rig: &Rig, planned: &[PlannedPoint], points: usize) -> Option<PathSpec> {
+    let pts: Vec<&Vec<f64>> = planned
+        .iter()
+        .filter(|p| p.region != REFERENCE_REGION)
+        .take(80)
+        .map(|p| &p.q)
+        .collect();
+    let nominal = ErrorParams::zeros(rig.chain.layout());
+    let mut best: Option<(f64, PathSpec)> = None;
+    for (i, a) in pts.iter().enumerate() {
+        for b in &pts[i + 1..] {
+            let length = (rig.chain.position(a, &nominal) - rig.chain.position(b, &nominal)).norm();
+            if best.as_ref().is_some_and(|(l, _)| *l >= length) {
+                continue;
+            }
+            let spec = straight_path(rig, a, b, points);
+            if spec.points.iter().all(|q| rig.measurable(q).is_ok()) {
+                best = Some((length, spec));
+            }
+        }
+    }
+    best.map(|(_, s)| s)
+}
+
+/// The joint line from `a` to `b` (rad, mm), named by its ends in file units.
+fn straight_path(rig: &Rig, a: &[f64], b: &[f64], points: usize) -> PathSpec {
+    let joints = rig.chain.joints();
+    let file_units = |q: &[f64]| -> Vec<f64> {
+        rig.moving_joints()
+            .iter()
+            .map(|&j| joints[j].kind.to_file_units(q[j]))
+            .collect()
+    };
+    let (da, db) = (file_units(a), file_units(b));
+    let fmt = |v: &[f64]| {
+        v.iter()
+            .map(|x| format!("{x:.1}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let name = format!("joint path ({}) → ({})", fmt(&da), fmt(&db));
+    joint_path(rig, &name, &da, &db, points)
+}
+
+/// The registration an earlier session in `dir` made (its `session.toml`), for a path session
+/// that reuses it so both recordings share one frame.
+pub fn registration_of(rig: &Rig, dir: &Path) -> Result<RegistrationInfo, CalibrationError> {
+    let rec =
+        Recording::read(dir, rig.chain.joints()).map_err(|source| CalibrationError::Recording {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    rec.session
+        .and_then(|s| s.registration)
+        .ok_or_else(|| CalibrationError::NoRegistration {
+            dir: dir.to_path_buf(),
+        })
+}
+
+/// The commands along a path: its targets (the nominal positions), the nominal commands and
+/// the commands `model` compensates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PathCommands {
+    /// Target per point (mm).
+    pub targets: Vec<Vector3<f64>>,
+    /// Nominal commands (the path's points).
+    pub nominal: Vec<Vec<f64>>,
+    /// Compensated commands.
+    pub compensated: Vec<Vec<f64>>,
+}
+
+/// The nominal and compensated commands of `path` under `model`.
+pub fn path_commands(
+    rig: &Rig,
+    model: &dyn ErrorModel,
+    path: &PathSpec,
+) -> Result<PathCommands, CalibrationError> {
+    let nominal = ErrorParams::zeros(rig.chain.layout());
+    let targets: Vec<Vector3<f64>> = path
+        .points
+        .iter()
+        .map(|q| rig.chain.position(q, &nominal))
+        .collect();
+    let opts = CompensationOptions::default();
+    let compensated = path
+        .points
+        .iter()
+        .zip(&targets)
+        .map(|(q, t)| {
+            compensate_from(&rig.chain, model, t, rig.held(), q.clone(), &opts)
+                .map(|c| c.command)
+                .map_err(|source| CalibrationError::Compensation {
+                    target: [t.x, t.y, t.z],
+                    source,
+                })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(PathCommands {
+        targets,
+        nominal: path.points.clone(),
+        compensated,
+    })
+}
+
+/// A session plan that measures at `commands`, one point each, region [`PATH_REGION`].
+pub fn path_plan(rig: &Rig, commands: &[Vec<f64>]) -> Vec<PlannedPoint> {
+    commands
+        .iter()
+        .enumerate()
+        .map(|(k, q)| PlannedPoint {
+            point: k + 1,
+            region: PATH_REGION.into(),
+            q: q.clone(),
+            table_mm: table_target(rig, q).unwrap_or_default(),
+        })
+        .collect()
+}
+
+/// The measured distance to each target of a path session's recording (mm); NaN where the
+/// point was not measured.
+pub fn measured_errors(rec: &Recording, targets: &[Vector3<f64>]) -> Vec<f64> {
+    rec.rows
+        .iter()
+        .filter(|m| m.region.as_deref() == Some(PATH_REGION) && m.status != Status::Via)
+        .zip(targets)
+        .map(|(m, t)| m.position.map_or(f64::NAN, |p| (p - t).norm()))
+        .collect()
+}
+
+/// How far rounding each command to the arm controller's resolution moves the nominal tip
+/// (mm): the floor of joint-command compensation on the rig.
+pub fn resolution_floor(rig: &Rig, commands: &[Vec<f64>]) -> Vec<f64> {
+    let step = resolution_deg(rig).to_radians();
+    let nominal = ErrorParams::zeros(rig.chain.layout());
+    commands
+        .iter()
+        .map(|q| {
+            let rounded: Vec<f64> = q.iter().map(|v| (v / step).round() * step).collect();
+            (rig.chain.position(&rounded, &nominal) - rig.chain.position(q, &nominal)).norm()
+        })
+        .collect()
+}
+
+/// The arm controller's command resolution (deg).
+pub fn resolution_deg(rig: &Rig) -> f64 {
+    rig.devices.clone().unwrap_or_default().arm.resolution_deg
+}
+
+/// A model checked on the rig along a path: the distance to each target the rig measured at the
+/// nominal commands (`uncalibrated`) and at the commands the model compensates, and the floor
+/// the controller's command resolution sets.
+#[derive(Debug, Clone)]
+pub struct RigPathCheck {
+    /// The path's name.
+    pub path: String,
+    /// Points of the path.
+    pub points: usize,
+    /// Measured distance to target per point: uncalibrated, then the model.
+    pub results: Vec<PathResult>,
+    /// What rounding the compensated commands to the controller's resolution moves the tip (mm).
+    pub floor_mm: Vec<f64>,
+    /// The controller's command resolution (deg).
+    pub resolution_deg: f64,
+}
+
+impl RigPathCheck {
+    /// The check from the recordings of the two path sessions: at `commands.nominal` and at
+    /// `commands.compensated` (by the model named `model`).
+    pub fn new(
+        rig: &Rig,
+        path: &PathSpec,
+        commands: &PathCommands,
+        model: &str,
+        nominal: &Recording,
+        compensated: &Recording,
+    ) -> Self {
+        let result = |name: &str, rec: &Recording| PathResult {
+            model: name.to_string(),
+            errors: measured_errors(rec, &commands.targets),
+            traces: Vec::new(),
+            failures: 0,
+        };
+        Self {
+            path: path.name.clone(),
+            points: path.points.len(),
+            results: vec![result("uncalibrated", nominal), result(model, compensated)],
+            floor_mm: resolution_floor(rig, &commands.compensated),
+            resolution_deg: resolution_deg(rig),
+        }
+    }
+
+    /// Plots the measured distances along the path (SVG).
+    pub fn plot(&self, file: &Path) -> Result<(), PathError> {
+        plot_errors(
+            file,
+            &format!("distance to target measured by the rig along {}", self.path),
+            &self.results,
+        )
+    }
+
+    /// The check as `rigcal demo` prints it, with the plot's file.
+    pub fn text(&self, plot: &Path) -> String {
+        let mut s = format!(
+            "{} ({} points), measured by the rig (panel quantisation and table accuracy included):\n",
+            self.path, self.points
+        );
+        for r in &self.results {
+            let st = r.stats();
+            let missed = r.errors.iter().filter(|e| e.is_nan()).count();
+            let _ = writeln!(
+                s,
+                "  {:<14} mean {:.4} mm   max {:.4} mm   {missed} point(s) not measured",
+                r.model, st.mean_mm, st.max_mm
+            );
+        }
+        let _ = writeln!(s, "  plot: {}", plot.display());
+        let _ = writeln!(
+            s,
+            "  the controller's {}° command resolution alone moves the compensated tip by {:.4} mm mean, {:.4} mm max: the floor of joint-command compensation on this rig",
+            self.resolution_deg,
+            self.floor_mm.iter().sum::<f64>() / self.floor_mm.len().max(1) as f64,
+            self.floor_mm.iter().copied().fold(0.0, f64::max)
+        );
+        s
+    }
+}

@@ -1,0 +1,309 @@
+//! The variable D-H parameter model: division → CEPs per region → learner → model file.
+
+use super::{
+    check_scenario_rig, design_basis, Calibrated, CalibrationError, CalibrationOptions,
+    DivisionFigures, Figures, LearnerFigures, Source,
+};
+use crate::division::{divide, forget_region, DivisionOptions, DivisionReport, Measurer, Mode};
+use crate::identification::Observation;
+use crate::learners::{self, Learner};
+use crate::model::{
+    cep_scale, entries, summary, DivisionSummary, ModelBody, ModelFile, Provenance,
+};
+use crate::rig::Rig;
+use crate::world::{Scenario, World};
+use std::time::Instant;
+
+/// A simulated world as a division's measurer: each call is the next measurement, taken
+/// `step_s` after the previous one, with the world's motion history (backlash, drift).
+pub struct WorldMeasurer {
+    /// The truth world.
+    pub world: World,
+    /// Measurements made.
+    pub seq: u64,
+    /// Simulated time of the last measurement (s).
+    pub t_s: f64,
+    /// Time per measurement (s).
+    pub step_s: f64,
+}
+
+impl WorldMeasurer {
+    /// A fresh world of `scenario`, measuring at the scenario's pace.
+    pub fn of(scenario: &Scenario) -> Self {
+        Self {
+            world: scenario.world(),
+            seq: 0,
+            t_s: 0.0,
+            step_s: scenario.measurement.seconds_per_point,
+        }
+    }
+}
+
+impl Measurer for WorldMeasurer {
+    fn measure(&mut self, q: &[f64]) -> Option<Observation> {
+        self.seq += 1;
+        self.t_s += self.step_s;
+        let p = self.world.measure_at(q, self.t_s, self.seq, 0).position?;
+        Some(Observation { q: q.to_vec(), p })
+    }
+}
+
+/// Runs the division, trains the learner and builds the model file.
+pub(super) fn calibrate(
+    rig: &Rig,
+    source: Source<'_>,
+    opts: &CalibrationOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Calibrated, CalibrationError> {
+    opts.check()?;
+    let mode_name = source.mode_name();
+    let basis = design_basis(rig, opts);
+    let division = DivisionOptions {
+        space: opts.space,
+        accuracy_mm: opts.accuracy_mm,
+        max_regions: opts.region_cap(),
+        per_region: opts.per_region,
+        test_points: opts.test_points,
+        seed: opts.seed,
+        ..DivisionOptions::default()
+    };
+    let t0 = Instant::now();
+    let mut world;
+    let (mode, label) = match source {
+        Source::Offline {
+            observations,
+            label,
+        } => {
+            if observations.is_empty() {
+                return Err(CalibrationError::NoMeasurements { label });
+            }
+            (Mode::Offline(observations), label)
+        }
+        Source::Scenario(sc) => {
+            check_scenario_rig(rig, sc)?;
+            world = WorldMeasurer::of(sc);
+            (
+                Mode::Planning(&mut world),
+                format!("scenario {}", sc.path.display()),
+            )
+        }
+        Source::Measurer { measurer, label } => (Mode::Planning(measurer), label),
+    };
+    let mut report = divide(rig, &basis, mode, &division, progress)?;
+    let unmeasurable = opts.unmeasurable_at.map(|p| {
+        let id = forget_region(&mut report.tree, &division_point(opts.space, p));
+        (p, id)
+    });
+    let division_time = t0.elapsed();
+    let t1 = Instant::now();
+    let scale = cep_scale(rig, &basis);
+    let init: Vec<f64> = basis
+        .iter()
+        .map(|&i| report.conventional.params.get(i))
+        .collect();
+    let learner = learners::train(
+        opts.learner,
+        &opts.learner_settings,
+        &report.tree,
+        &init,
+        &scale,
+    );
+    let mut figures = figures(&report, opts, mode_name);
+    figures.unmeasurable = unmeasurable;
+    figures.learner = learner.as_ref().map(learner_figures);
+    figures.division_time = division_time;
+    figures.learner_time = t1.elapsed();
+    let model = model_file(rig, report, learner, opts, mode_name, label);
+    Ok(Calibrated {
+        model,
+        figures: Figures::Division(figures),
+    })
+}
+
+/// The model file of a division and its learner.
+fn model_file(
+    rig: &Rig,
+    report: DivisionReport,
+    learner: Option<Learner>,
+    opts: &CalibrationOptions,
+    mode_name: &str,
+    label: String,
+) -> ModelFile {
+    let division = DivisionSummary {
+        accuracy_mm: opts.accuracy_mm,
+        max_regions: opts.region_cap(),
+        per_region: opts.per_region,
+        regions: report.tree.leaf_count(),
+        measurements: report.observations.len(),
+        test_measurements: report.test_measurements,
+        mode: mode_name.into(),
+        design_poses: opts.design_poses,
+    };
+    ModelFile::new(
+        rig,
+        Provenance {
+            recording: Some(label),
+            measurements: report.observations.len(),
+            notes: Some(format!(
+                "{mode_name} division in {:?} space, seed {}",
+                opts.space, opts.seed
+            )),
+        },
+        ModelBody::Variable {
+            conventional: entries(rig, &report.conventional),
+            fit: summary(&report.conventional),
+            division,
+            tree: report.tree,
+            learner,
+        },
+    )
+}
+
+/// The division's figures (the learner's and the times are filled in by the caller).
+fn figures(r: &DivisionReport, opts: &CalibrationOptions, mode: &str) -> DivisionFigures {
+    let leaves = r.tree.root.leaves();
+    let passing = leaves
+        .iter()
+        .filter(|l| l.test.is_some_and(|t| t.max_mm <= opts.accuracy_mm))
+        .count();
+    let mut kappas: Vec<f64> = leaves
+        .iter()
+        .map(|l| l.kappa)
+        .filter(|k| k.is_finite())
+        .collect();
+    kappas.sort_by(f64::total_cmp);
+    let kappa = kappas.last().map(|&max| (kappas[kappas.len() / 2], max));
+    let unsplit = leaves
+        .iter()
+        .filter_map(|l| Some((l.id.clone(), l.note.clone()?)))
+        .take(5)
+        .collect();
+    DivisionFigures {
+        mode: mode.into(),
+        space: opts.space,
+        accuracy_mm: opts.accuracy_mm,
+        per_region: opts.per_region,
+        max_regions: opts.region_cap(),
+        regions: leaves.len(),
+        passing,
+        measurements: r.observations.len(),
+        test_measurements: r.test_measurements,
+        kappa,
+        unsplit,
+        conventional_mm: (r.conventional.after.rms_mm, r.conventional.after.max_mm),
+        unmeasurable: None,
+        learner: None,
+        division_time: Default::default(),
+        learner_time: Default::default(),
+    }
+}
+
+fn learner_figures(l: &Learner) -> LearnerFigures {
+    match l {
+        Learner::Fcmac(f) => LearnerFigures::Fcmac {
+            sensors: f.config.cells,
+            c: f.config.c,
+            cells: f.cell_count(),
+            report: f.report,
+        },
+        Learner::Cmac(c) => LearnerFigures::Cmac {
+            layers: c.config.layers,
+            cells: c.config.cells,
+            report: c.report,
+        },
+    }
+}
+
+/// A division-space point from file units (deg for angles, mm for R).
+fn division_point(space: crate::division::Space, p: [f64; 3]) -> [f64; 3] {
+    match space {
+        crate::division::Space::Joint => p.map(f64::to_radians),
+        crate::division::Space::Cartesian => [p[0], p[1].to_radians(), p[2].to_radians()],
+    }
+}
+
+impl DivisionFigures {
+    /// The figures as `rigcal calibrate` prints them.
+    pub fn text(&self) -> String {
+        use std::fmt::Write;
+        let mut s = String::new();
+        if let Some((p, id)) = &self.unmeasurable {
+            let _ = writeln!(
+                s,
+                "region {id} (containing {},{},{}) treated as unmeasurable: its CEPs are dropped",
+                p[0], p[1], p[2]
+            );
+        }
+        let _ = writeln!(
+            s,
+            "{} division in {:?} space, demanded accuracy {} mm, {} per region (paper: {})",
+            self.mode,
+            self.space,
+            self.accuracy_mm,
+            self.per_region,
+            self.space.paper_figures()
+        );
+        let _ = writeln!(
+            s,
+            "  regions {} (cap {}), {} meet the accuracy on their test points; {} identification measurements, {} test measurements; {:.2} s",
+            self.regions,
+            self.max_regions,
+            self.passing,
+            self.measurements,
+            self.test_measurements,
+            self.division_time.as_secs_f64()
+        );
+        if let Some((median, max)) = self.kappa {
+            let _ = writeln!(
+                s,
+                "  κ (eq. 4) per region: median {median:.3e}, max {max:.3e}"
+            );
+        }
+        for (id, note) in &self.unsplit {
+            let _ = writeln!(s, "  region {id} not split further: {note}");
+        }
+        let _ = writeln!(
+            s,
+            "  conventional fit on the same data: RMS {:.4} mm, max {:.4} mm",
+            self.conventional_mm.0, self.conventional_mm.1
+        );
+        let _ = writeln!(s, "{}", self.learner_line());
+        s
+    }
+
+    fn learner_line(&self) -> String {
+        let t = self.learner_time.as_secs_f64();
+        let untrained = learners::TrainReport {
+            epochs: 0,
+            max_error: f64::NAN,
+            rms_error: f64::NAN,
+            converged: false,
+        };
+        match &self.learner {
+            Some(LearnerFigures::Fcmac {
+                sensors,
+                c,
+                cells,
+                report,
+            }) => {
+                let r = report.unwrap_or(untrained);
+                format!(
+                    "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {} epochs, pattern error max {:.4} RMS {:.4} (mm/deg); {t:.2} s",
+                    r.epochs, r.max_error, r.rms_error
+                )
+            }
+            Some(LearnerFigures::Cmac {
+                layers,
+                cells,
+                report,
+            }) => {
+                let r = report.unwrap_or(untrained);
+                format!(
+                    "  CMAC: {layers} layers of {cells:?} cells; {} epochs, pattern error max {:.4} RMS {:.4}; {t:.2} s",
+                    r.epochs, r.max_error, r.rms_error
+                )
+            }
+            None => "  no learner: compensation uses each region's CEPs".to_string(),
+        }
+    }
+}
