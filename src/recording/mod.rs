@@ -6,6 +6,12 @@
 //! line and column named: nothing is silently dropped. Writing appends and flushes row by row
 //! so a session killed at any instant leaves valid CSV (at worst a torn last line, which
 //! [`RecordingWriter::open_append`] detects and discards).
+//!
+//! [`import`] turns a foreign CSV (laser tracker, motion capture) into a recording.
+
+pub mod import;
+
+pub use import::{import_csv, AngleUnit, ImportError, ImportSpec, LengthUnit};
 
 use crate::kinematics::JointSpec;
 use nalgebra::Vector3;
@@ -173,6 +179,15 @@ pub struct RegistrationInfo {
     pub rms_mm: Option<f64>,
 }
 
+/// A joint vector and the point measured there (mm): what identification fits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// Joint values (rad or mm).
+    pub q: Vec<f64>,
+    /// Measured point (mm).
+    pub p: Vector3<f64>,
+}
+
 /// A recording in memory.
 #[derive(Debug, Clone, Default)]
 pub struct Recording {
@@ -203,6 +218,23 @@ impl Recording {
             .iter()
             .filter(|m| m.status == Status::Ok)
             .filter_map(|m| m.position.map(|p| (m, p)))
+    }
+
+    /// The measured rows as observations (joint values, measured point), in row order.
+    pub fn observations(&self) -> Vec<Observation> {
+        self.measured()
+            .map(|(m, p)| Observation { q: m.q.clone(), p })
+            .collect()
+    }
+
+    /// The measurement rows (`status` ok) that carry table coordinates, as observations of the
+    /// table point: what a registration fits.
+    pub fn table_observations(&self) -> Vec<Observation> {
+        self.rows
+            .iter()
+            .filter(|m| m.status == Status::Ok)
+            .filter_map(|m| m.table.map(|p| Observation { q: m.q.clone(), p }))
+            .collect()
     }
 
     /// Reads a recording directory (or a bare CSV file).
@@ -853,6 +885,21 @@ pub enum Target {
     Joints(Vec<f64>),
 }
 
+/// Reads a poses CSV: one column per joint (`q1_deg…`), one pose per row, in row order.
+pub fn read_poses(path: &Path, joints: &[JointSpec]) -> Result<Vec<Vec<f64>>, RecordingError> {
+    read_targets(path, joints)?
+        .into_iter()
+        .map(|(line, t)| match t {
+            Target::Joints(q) => Ok(q),
+            Target::Position(_) => Err(RecordingError::Malformed {
+                path: path.to_path_buf(),
+                line,
+                reason: "a poses file needs joint columns (q1_deg…), not x_mm,y_mm,z_mm".into(),
+            }),
+        })
+        .collect()
+}
+
 /// Reads a targets CSV: columns `x_mm,y_mm,z_mm`, or one column per joint (`q1_deg…`). Returns
 /// each target with its line number.
 pub fn read_targets(
@@ -917,4 +964,28 @@ pub fn read_targets(
         out.push((line, target));
     }
     Ok(out)
+}
+
+/// The text of a joint-commands CSV: a header of joint columns (`q1_deg…`) and one row per
+/// command (rad or mm inside), in file units with six decimals. [`read_targets`] reads it back.
+pub fn commands_csv<'a>(
+    joints: &[JointSpec],
+    commands: impl IntoIterator<Item = &'a [f64]>,
+) -> String {
+    let header: Vec<String> = joints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| j.kind.column(i + 1))
+        .collect();
+    let mut out = header.join(",");
+    out.push('\n');
+    for q in commands {
+        let fields: Vec<String> = joints
+            .iter()
+            .zip(q)
+            .map(|(j, v)| format!("{:.6}", j.kind.to_file_units(*v)))
+            .collect();
+        let _ = writeln!(out, "{}", fields.join(","));
+    }
+    out
 }
