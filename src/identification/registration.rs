@@ -8,7 +8,7 @@
 
 use super::fit::{fit, FitError, FitOptions, Observation, ResidualStats};
 use crate::kinematics::{ErrorParams, Robot, SerialChain, TransformId};
-use crate::recording::{Recording, RegistrationInfo, SessionInfo};
+use crate::recording::{Recording, RegistrationInfo};
 use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// A fitted registration.
@@ -110,7 +110,7 @@ impl Registration {
                 m.position = Some((self.world_from_instrument * Point3::from(t)).coords);
             }
         }
-        let mut info = out.session.clone().unwrap_or_else(SessionInfo::default);
+        let mut info = out.session.clone().unwrap_or_default();
         info.registration = Some(self.info());
         out.session = Some(info);
         out

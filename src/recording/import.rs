@@ -133,33 +133,21 @@ pub enum ImportError {
         source: csv::Error,
     },
     /// A cell that must hold a number does not.
-    #[error("{}: line {line}, column {column} (`{name}`): `{text}` is not a number", path.display())]
+    #[error("{at}: `{text}` is not a number")]
     NotANumber {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// 1-based column.
-        column: usize,
-        /// Column name.
-        name: String,
+        /// The cell.
+        at: Box<CellAt>,
         /// The cell's text.
         text: String,
     },
     /// A joint value lies outside the rig's limits.
     #[error(
-        "{}: line {line}, column {column} (`{name}`): {} {unit} is outside joint {joint}'s limits {:.3}..{:.3} {unit}",
-        path.display(), value, limits[0], limits[1]
+        "{at}: {} {unit} is outside joint {joint}'s limits {:.3}..{:.3} {unit}",
+        value, limits[0], limits[1]
     )]
     OutsideLimits {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: u64,
-        /// 1-based column.
-        column: usize,
-        /// Column name.
-        name: String,
+        /// The cell.
+        at: Box<CellAt>,
         /// The joint.
         joint: String,
         /// The value (file units of the rig: deg or mm).
@@ -169,6 +157,32 @@ pub enum ImportError {
         /// Their unit.
         unit: &'static str,
     },
+}
+
+/// Where a bad cell is: "FILE: line L, column C (`NAME`)".
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CellAt {
+    /// The file.
+    pub path: PathBuf,
+    /// 1-based line.
+    pub line: u64,
+    /// 1-based column.
+    pub column: usize,
+    /// Column name.
+    pub name: String,
+}
+
+impl std::fmt::Display for CellAt {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: line {}, column {} (`{}`)",
+            self.path.display(),
+            self.line,
+            self.column,
+            self.name
+        )
+    }
 }
 
 /// The column indices of the spec in a header.
@@ -315,16 +329,23 @@ impl Cells<'_> {
         })
     }
 
+    /// Where column `c` of this row is.
+    fn at(&self, c: usize) -> Box<CellAt> {
+        Box::new(CellAt {
+            path: self.path.to_path_buf(),
+            line: self.line,
+            column: c + 1,
+            name: self.headers[c].clone(),
+        })
+    }
+
     /// A finite number in column `c`.
     fn number(&self, c: usize) -> Result<f64, ImportError> {
         let t = self.record.get(c).unwrap_or("").trim();
         match t.parse::<f64>() {
             Ok(v) if v.is_finite() => Ok(v),
             _ => Err(ImportError::NotANumber {
-                path: self.path.to_path_buf(),
-                line: self.line,
-                column: c + 1,
-                name: self.headers[c].clone(),
+                at: self.at(c),
                 text: t.to_string(),
             }),
         }
@@ -341,10 +362,7 @@ impl Cells<'_> {
             return Ok(v);
         }
         Err(ImportError::OutsideLimits {
-            path: self.path.to_path_buf(),
-            line: self.line,
-            column: c + 1,
-            name: self.headers[c].clone(),
+            at: self.at(c),
             joint: joint.name.clone(),
             value: joint.kind.to_file_units(v),
             limits: [
@@ -446,14 +464,7 @@ mod tests {
         );
         let e = import_csv(&path, &rig(), &spec()).expect_err("not a number");
         assert!(
-            matches!(
-                e,
-                ImportError::NotANumber {
-                    line: 2,
-                    column: 8,
-                    ..
-                }
-            ),
+            matches!(&e, ImportError::NotANumber { at, .. } if (at.line, at.column) == (2, 8)),
             "{e}"
         );
         assert!(e
@@ -465,7 +476,7 @@ mod tests {
         );
         let e = import_csv(&path, &rig(), &spec()).expect_err("outside the limits");
         assert!(
-            matches!(e, ImportError::OutsideLimits { column: 2, .. }),
+            matches!(&e, ImportError::OutsideLimits { at, .. } if at.column == 2),
             "{e}"
         );
         let wrong = ImportSpec {

@@ -11,7 +11,7 @@
 
 pub mod import;
 
-pub use import::{import_csv, AngleUnit, ImportError, ImportSpec, LengthUnit};
+pub use import::{import_csv, AngleUnit, CellAt, ImportError, ImportSpec, LengthUnit};
 
 use crate::kinematics::JointSpec;
 use nalgebra::Vector3;
@@ -764,6 +764,83 @@ fn csv_field(v: &str) -> String {
 mod tests {
     use super::*;
     use crate::kinematics::JointKind;
+
+    /// Rows: ok with a point and a table point, via, ok without a point, skipped, ok.
+    fn mixed() -> Recording {
+        let mut rec = Recording::new(&joints());
+        let row = |seq: u64, status: Status, p: Option<[f64; 3]>| Measurement {
+            seq,
+            q: vec![0.1 * seq as f64, 10.0 * seq as f64],
+            position: p.map(Vector3::from),
+            status,
+            ..Default::default()
+        };
+        rec.rows = vec![
+            Measurement {
+                table: Some(Vector3::new(7.0, 8.0, 9.0)),
+                ..row(1, Status::Ok, Some([1.0, 2.0, 3.0]))
+            },
+            row(2, Status::Via, None),
+            Measurement {
+                table: Some(Vector3::new(1.0, 1.0, 1.0)),
+                ..row(3, Status::Ok, None)
+            },
+            row(4, Status::Skipped("out of reach".into()), None),
+            row(5, Status::Ok, Some([4.0, 5.0, 6.0])),
+        ];
+        rec
+    }
+
+    #[test]
+    fn observations_are_the_measured_rows_in_order() {
+        let rec = mixed();
+        let obs = rec.observations();
+        assert_eq!(
+            obs,
+            vec![
+                Observation {
+                    q: vec![0.1, 10.0],
+                    p: Vector3::new(1.0, 2.0, 3.0)
+                },
+                Observation {
+                    q: vec![0.5, 50.0],
+                    p: Vector3::new(4.0, 5.0, 6.0)
+                },
+            ]
+        );
+        // A registration fits table points, which a row may carry without a world point.
+        let table: Vec<Vector3<f64>> = rec.table_observations().iter().map(|o| o.p).collect();
+        assert_eq!(
+            table,
+            vec![Vector3::new(7.0, 8.0, 9.0), Vector3::new(1.0, 1.0, 1.0)]
+        );
+    }
+
+    #[test]
+    fn commands_csv_is_in_file_units_and_reads_back_as_poses() {
+        let text = commands_csv(
+            &joints(),
+            [[0.5f64.to_radians(), 12.25].as_slice(), &[-1.0, 0.0]],
+        );
+        assert_eq!(
+            text,
+            "q1_deg,q2_mm\n0.500000,12.250000\n-57.295780,0.000000\n"
+        );
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("poses.csv");
+        std::fs::write(&path, &text).expect("write");
+        let poses = read_poses(&path, &joints()).expect("read");
+        assert!((poses[0][0] - 0.5f64.to_radians()).abs() < 1e-9);
+        assert_eq!(poses[1][1], 0.0);
+        std::fs::write(&path, "x_mm,y_mm,z_mm\n1,2,3\n").expect("write");
+        let e = read_poses(&path, &joints()).expect_err("positions are not poses");
+        assert!(
+            e.to_string().ends_with(
+                "line 2: a poses file needs joint columns (q1_deg…), not x_mm,y_mm,z_mm"
+            ),
+            "{e}"
+        );
+    }
 
     fn joints() -> Vec<JointSpec> {
         vec![
