@@ -1,12 +1,15 @@
 //! Benchmarks of the calibration pipeline: identification from 2200 measurements (the paper's
-//! data set size), compensation throughput and the variable D-H pipeline as a library call. Run with `cargo bench --bench pipeline`.
+//! data set size) — the fit alone and `identify` end to end (analysis, fit, outlier search) —
+//! compensation throughput and the variable D-H pipeline as a library call. Run with
+//! `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
 use rigcal::compensation::{compensate, CompensationOptions};
 use rigcal::identification::{
-    analyse, candidate_order, fit, random_poses, FitOptions, Observation,
+    analyse, candidate_order, fit, identify, random_poses, FitOptions, IdentifyOptions, Level,
+    Observation,
 };
 use rigcal::kinematics::{ErrorParams, Robot};
 use rigcal::rig::Rig;
@@ -46,6 +49,15 @@ fn identification(c: &mut Criterion) {
     g.bench_function("15 parameters from 2200 measurements", |b| {
         b.iter(|| fit(&rig.chain, &obs, &zero, &basis, &FitOptions::default()).expect("fit"))
     });
+    let rec = world.record(&poses, 1);
+    g.bench_function(
+        "identify at level full from a 2200-row recording (outlier search included)",
+        |b| {
+            b.iter(|| {
+                identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify")
+            })
+        },
+    );
     g.finish();
 }
 

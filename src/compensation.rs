@@ -9,6 +9,7 @@
 //! Units: mm and rad inside.
 
 use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkError, IkOptions, Robot};
+use crate::recording::Target;
 use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Why a target cannot be compensated.
@@ -159,4 +160,48 @@ pub fn compensate_from(
         residual_mm: residual,
         iterations,
     })
+}
+
+/// A target of [`compensate_targets`] that could not be compensated.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("target at line {line}: {source}")]
+pub struct TargetError {
+    /// The target's line in its file.
+    pub line: u64,
+    /// Why.
+    pub source: CompensationError,
+}
+
+/// Compensates targets in order (each with its line in the file, as
+/// [`crate::recording::read_targets`] gives them). A position target's nominal inverse
+/// kinematics starts from the previous command, so a path stays on one branch; a joint target's
+/// nominal position is the target, reached from its own joints, with the joints the rig holds
+/// kept at the target's values.
+pub fn compensate_targets(
+    robot: &dyn Robot,
+    model: &dyn ErrorModel,
+    held: &[Option<f64>],
+    targets: &[(u64, Target)],
+    opts: &CompensationOptions,
+) -> Result<Vec<Compensated>, TargetError> {
+    let nominal = ErrorParams::zeros(robot.layout());
+    let mut out: Vec<Compensated> = Vec::with_capacity(targets.len());
+    for (line, target) in targets {
+        let seed = out.last().map(|c| c.command.as_slice());
+        let c = match target {
+            Target::Position(p) => compensate(robot, model, p, held, seed, opts),
+            Target::Joints(q) => {
+                let p = robot.position(q, &nominal);
+                let held_here: Vec<Option<f64>> =
+                    held.iter().zip(q).map(|(h, v)| h.map(|_| *v)).collect();
+                compensate_from(robot, model, &p, &held_here, q.clone(), opts)
+            }
+        }
+        .map_err(|source| TargetError {
+            line: *line,
+            source,
+        })?;
+        out.push(c);
+    }
+    Ok(out)
 }

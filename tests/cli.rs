@@ -357,3 +357,52 @@ fn reproduce_writes_fig7_learning_curves_that_fall() {
     let (ok, _, err) = rigcal(&["reproduce", "seed001", "--figure", "3"]);
     assert!(!ok && err.contains("figure 3 is not reproduced"), "{err}");
 }
+
+/// The shared option groups (`--rig`, `--recording`, `--out`) keep each command's own help text
+/// and the usage line's order.
+#[test]
+fn shared_options_keep_their_help_per_command() {
+    for (command, wanted) in [
+        (
+            &["identify", "--help"][..],
+            &[
+                "Usage: rigcal identify [OPTIONS] --rig <RIG> --recording <RECORDING> --out <OUT>",
+                "Rig file (TOML)",
+                "Recording: a directory with measurements.csv, or a CSV file",
+                "Where to write the model (JSON)",
+            ][..],
+        ),
+        (
+            &["import", "--help"],
+            &[
+                "Usage: rigcal import [OPTIONS] --rig <RIG> --joints <JOINTS> --point <POINT> --out <OUT> <FILE>",
+                "Rig file the joints belong to",
+                "Output recording directory",
+            ],
+        ),
+        (
+            &["register", "--help"],
+            &["Recording whose rows carry table_x_mm, table_y_mm, table_z_mm"],
+        ),
+        (
+            &["simulate", "--help"],
+            &[
+                "The rig file the session runs on (must be the scenario's rig)",
+                "Directory for measurements.csv and session.toml",
+            ],
+        ),
+        (&["plan", "--help"], &["The rig file", "Where to write the plan (CSV)"]),
+        (
+            &["compensate", "--help"],
+            &["Output CSV: one row of joint commands (`q1_deg…`) per target, same order"],
+        ),
+        (&["rig", "from-urdf", "--help"], &["Output rig file"]),
+        (&["--help"], &["More log output (-v info, -vv debug)"]),
+    ] {
+        let (ok, out, err) = rigcal(command);
+        assert!(ok, "{err}");
+        for w in wanted {
+            assert!(out.contains(w), "{command:?}: no `{w}` in\n{out}");
+        }
+    }
+}

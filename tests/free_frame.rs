@@ -113,3 +113,101 @@ fn a_free_frame_is_fitted_from_any_orientation_and_held_out_error_is_at_the_nois
     let truth_p = world.true_position(&held_poses[0]);
     assert!((p - truth_p).norm() < 0.2, "{p} vs {truth_p}");
 }
+
+/// The tracker rig and a recording of it seen from far away, rotated.
+fn tracker_recording(dir: &Path) -> (Rig, rigcal::recording::Recording) {
+    let rig_path = dir.join("tracker.toml");
+    std::fs::write(&rig_path, tracker_rig_text()).unwrap();
+    let rig = Rig::load(&rig_path).unwrap();
+    let design = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        60,
+        &mut ChaCha8Rng::seed_from_u64(1),
+    );
+    let ident = analyse(&rig.chain, &design, &candidate_order(&rig));
+    let truth = paper_geometric_errors(&rig.chain, &ident, 3);
+    let frame = Isometry3::from_parts(
+        Translation3::new(2500.0, -800.0, 1200.0),
+        UnitQuaternion::from_euler_angles(0.3, -0.4, 2.9),
+    );
+    let world = World::new(rig.chain.with_frame(frame), truth, 0.05, 9);
+    let poses = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        80,
+        &mut ChaCha8Rng::seed_from_u64(2),
+    );
+    let rec = world.record(&poses, 1);
+    (rig, rec)
+}
+
+/// The geometric fit keeps the frame relative to its closed-form start on the started chain (as
+/// the diagnosis needs it) and hands out absolute values for the rig's chain (as the model file
+/// needs them): both predict the same points.
+#[test]
+fn started_and_absolute_frames_predict_the_same_points() {
+    use rigcal::identification::{fit_geometry, Level};
+    let dir = tempfile::tempdir().unwrap();
+    let (rig, rec) = tracker_recording(dir.path());
+    let obs = rec.observations();
+    let geometric = fit_geometry(&rig, &obs, &Level::Full.candidates(&rig)).unwrap();
+    assert_eq!(geometric.basis(), geometric.fit.free.as_slice());
+    let started = geometric.started.clone();
+    let relative = geometric.fit.params.clone();
+    let (chain, absolute) = geometric.into_absolute();
+    // Relative to the start the corrections are small; absolute, the frame is metres away.
+    let frame = |p: &rigcal::kinematics::ErrorParams, c: &rigcal::kinematics::SerialChain| {
+        c.layout()
+            .ids()
+            .iter()
+            .enumerate()
+            .filter(|(_, id)| id.transform == rigcal::kinematics::TransformId::Frame)
+            .map(|(i, _)| p.get(i).abs())
+            .fold(0.0, f64::max)
+    };
+    assert!(frame(&relative, &started) < 50.0);
+    assert!(frame(&absolute.params, &chain) > 1000.0);
+    for o in &obs {
+        let a = started.position(&o.q, &relative);
+        let b = chain.position(&o.q, &absolute.params);
+        assert!((a - b).norm() < 1e-6, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn each_level_fits_its_own_parameters() {
+    use rigcal::identification::{identify, IdentifyOptions, Level};
+    use rigcal::kinematics::{ParamKind, TransformId};
+    let dir = tempfile::tempdir().unwrap();
+    let (rig, rec) = tracker_recording(dir.path());
+    let layout = rig.chain.layout();
+    let kinds = |level: Level| -> Vec<(TransformId, ParamKind)> {
+        level
+            .candidates(&rig)
+            .iter()
+            .map(|&i| (layout.ids()[i].transform, layout.ids()[i].kind))
+            .collect()
+    };
+    let frames = kinds(Level::Frames);
+    assert_eq!(
+        frames.len(),
+        6,
+        "the six frame parameters (the marker is fixed)"
+    );
+    assert!(frames
+        .iter()
+        .all(|(t, _)| matches!(t, TransformId::Frame | TransformId::Marker)));
+    let offsets = kinds(Level::Offsets);
+    assert_eq!(offsets.len(), 6 + rig.chain.dof());
+    assert!(offsets
+        .iter()
+        .all(|(t, k)| !matches!(t, TransformId::Link(_)) || *k == ParamKind::Theta));
+    let mut rms = Vec::new();
+    for level in [Level::Frames, Level::Offsets, Level::Full] {
+        let id = identify(&rig, &rec, level, &IdentifyOptions::default()).unwrap();
+        rms.push(id.fit.after.rms_mm);
+    }
+    assert!(rms[0] > rms[1] && rms[1] > rms[2], "{rms:?}");
+    assert!(rms[2] < 0.1, "{rms:?}");
+}

@@ -245,3 +245,97 @@ fn registration_recovers_a_table_frame() {
     assert!(d.rotation.angle() < 1e-9);
     assert!(reg.stats.rms_mm < 1e-6);
 }
+
+#[test]
+fn a_recordings_table_points_register_and_the_registered_copy_is_in_world_coordinates() {
+    use rigcal::identification::registration::{register_recording, RegisterError};
+    use rigcal::recording::{Measurement, Recording, Status};
+    let rig = rig();
+    let chain = &rig.chain;
+    let world_from_table = Isometry3::from_parts(
+        Translation3::new(-400.0, 170.0, -50.0),
+        UnitQuaternion::from_euler_angles(0.0, 0.0, 0.01),
+    );
+    let poses = random_poses(
+        chain.joints(),
+        rig.held(),
+        20,
+        &mut ChaCha8Rng::seed_from_u64(5),
+    );
+    let e = ErrorParams::zeros(chain.layout());
+    let mut rec = Recording::new(chain.joints());
+    for (k, q) in poses.iter().enumerate() {
+        let world = chain.position(q, &e);
+        rec.rows.push(Measurement {
+            seq: k as u64 + 1,
+            q: q.clone(),
+            // Measured through a wrong registration: the copy recomputes it.
+            position: Some(world + Vector3::new(5.0, 0.0, 0.0)),
+            table: Some((world_from_table.inverse() * nalgebra::Point3::from(world)).coords),
+            status: Status::Ok,
+            ..Default::default()
+        });
+    }
+    let reg = register_recording(chain, &rec).unwrap();
+    assert_eq!(reg.n, 20);
+    let info = reg.info();
+    assert!((info.translation_mm[0] + 400.0).abs() < 1e-6, "{info:?}");
+    assert!(
+        (info.rpy_deg[2] - 0.01f64.to_degrees()).abs() < 1e-6,
+        "{info:?}"
+    );
+    let registered = reg.apply(&rec);
+    for (row, q) in registered.rows.iter().zip(&poses) {
+        let p = row.position.unwrap();
+        assert!((p - chain.position(q, &e)).norm() < 1e-6);
+    }
+    assert_eq!(registered.session.and_then(|s| s.registration), Some(info));
+    rec.rows.truncate(2);
+    let err = register_recording(chain, &rec).unwrap_err();
+    assert!(
+        matches!(err, RegisterError::TooFewTablePoints { found: 2 }),
+        "{err}"
+    );
+}
+
+#[test]
+fn targets_are_compensated_in_order_and_a_failure_names_its_line() {
+    use rigcal::compensation::compensate_targets;
+    use rigcal::recording::Target;
+    let rig = rig();
+    let chain = &rig.chain;
+    let zero = ErrorParams::zeros(chain.layout());
+    let q = vec![0.2, 0.9, -0.6, 0.0, 0.0];
+    let targets = vec![
+        (2, Target::Position(Vector3::new(0.0, 600.0, 500.0))),
+        (3, Target::Joints(q.clone())),
+    ];
+    let done = compensate_targets(
+        chain,
+        &zero,
+        rig.held(),
+        &targets,
+        &CompensationOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(done.len(), 2);
+    // With a zero model a joint target's command is its own joints.
+    assert!(done[1]
+        .command
+        .iter()
+        .zip(&q)
+        .all(|(a, b)| (a - b).abs() < 1e-9));
+    let far = vec![
+        (2, Target::Position(Vector3::new(0.0, 600.0, 500.0))),
+        (7, Target::Position(Vector3::new(0.0, 2000.0, 400.0))),
+    ];
+    let err = compensate_targets(
+        chain,
+        &zero,
+        rig.held(),
+        &far,
+        &CompensationOptions::default(),
+    )
+    .unwrap_err();
+    assert_eq!(err.line, 7);
+}

@@ -1,12 +1,16 @@
-//! Outliers in `rigcal identify`: gross errors planted in a recording (a marker seen through a
-//! reflection) are found with the right seq and file line, removed, and the fit then equals the
-//! fit of the recording with those rows deleted; on clean recordings nothing is flagged.
-//! Units: mm.
+//! Outliers in `rigcal identify` and [`rigcal::identification::identify`]: gross errors planted
+//! in a recording (a marker seen through a reflection) are found with the right seq and file
+//! line, removed, and the fit then equals the fit of the recording with those rows deleted; on
+//! clean recordings nothing is flagged; too many outliers remove nothing and say so. The
+//! pipeline's held-out report and its refusals are checked here too. Units: mm.
 
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::identification::{analyse, candidate_order, random_poses};
+use rigcal::identification::{
+    analyse, candidate_order, identify, random_poses, HeldOut, IdentifyError, IdentifyOptions,
+    Level,
+};
 use rigcal::kinematics::Robot;
 use rigcal::recording::Recording;
 use rigcal::rig::Rig;
@@ -28,7 +32,7 @@ fn recording(seed: u64) -> Recording {
 }
 
 /// Runs `rigcal identify` and returns (stdout, model JSON).
-fn identify(rec_dir: &Path, model: &Path) -> (String, serde_json::Value) {
+fn run_identify(rec_dir: &Path, model: &Path) -> (String, serde_json::Value) {
     let out = Command::new(env!("CARGO_BIN_EXE_rigcal"))
         .args(["identify", "--rig", RIG, "--recording"])
         .arg(rec_dir)
@@ -81,7 +85,7 @@ fn planted_gross_errors_are_named_removed_and_the_fit_matches_the_clean_fit() {
     }
     let bad = dir.path().join("bad");
     rec.write_dir(&bad).expect("write");
-    let (text, v) = identify(&bad, &dir.path().join("bad.json"));
+    let (text, v) = run_identify(&bad, &dir.path().join("bad.json"));
     eprintln!("{text}");
     let found = v["outliers"].as_array().cloned().unwrap_or_default();
     let mut seqs: Vec<u64> = found.iter().filter_map(|o| o["seq"].as_u64()).collect();
@@ -113,7 +117,7 @@ fn planted_gross_errors_are_named_removed_and_the_fit_matches_the_clean_fit() {
         .collect();
     let clean_dir = dir.path().join("clean");
     clean.write_dir(&clean_dir).expect("write");
-    let (_, c) = identify(&clean_dir, &dir.path().join("clean.json"));
+    let (_, c) = run_identify(&clean_dir, &dir.path().join("clean.json"));
     assert_eq!(c["outliers"].as_array().map_or(0, Vec::len), 0);
     for ((n, a, sa), (m, b, _)) in params(&v).iter().zip(params(&c).iter()) {
         assert_eq!(n, m);
@@ -130,7 +134,7 @@ fn clean_recordings_have_no_outliers() {
     for seed in 10..15u64 {
         let d = dir.path().join(format!("r{seed}"));
         recording(seed).write_dir(&d).expect("write");
-        let (text, v) = identify(&d, &dir.path().join(format!("m{seed}.json")));
+        let (text, v) = run_identify(&d, &dir.path().join(format!("m{seed}.json")));
         assert!(v.get("outliers").is_none(), "seed {seed}: {text}");
         assert!(text.contains("outliers: none"), "{text}");
     }
@@ -147,10 +151,113 @@ fn clean_recording_false_flag_rate() {
     for seed in 1000..1000 + n {
         let d = dir.path().join(format!("r{seed}"));
         recording(seed).write_dir(&d).expect("write");
-        let (_, v) = identify(&d, &dir.path().join(format!("m{seed}.json")));
+        let (_, v) = run_identify(&d, &dir.path().join(format!("m{seed}.json")));
         if v.get("outliers").is_some() {
             flagged += 1;
         }
     }
     eprintln!("clean recordings with a row flagged: {flagged}/{n}");
+}
+
+/// `recording(seed)` with rows moved by the given sizes (mm) in random directions.
+fn with_planted(seed: u64, planted: &[(usize, f64)]) -> Recording {
+    let mut rec = recording(seed);
+    let mut rng = ChaCha8Rng::seed_from_u64(99);
+    for &(k, size) in planted {
+        let dir3 = Vector3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize();
+        if let Some(p) = rec.rows[k].position.as_mut() {
+            *p += dir3 * size;
+        }
+    }
+    rec
+}
+
+#[test]
+fn the_library_pipeline_returns_the_planted_rows_with_their_file_lines() {
+    let rig = Rig::load(Path::new(RIG)).expect("rig");
+    let dir = tempfile::tempdir().expect("tempdir");
+    with_planted(3, &[(17, 2.0), (52, 3.5), (88, 5.0)])
+        .write_dir(dir.path())
+        .expect("write");
+    let rec = Recording::read(dir.path(), rig.chain.joints()).expect("read");
+    let id = identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let mut found: Vec<(u64, Option<u64>)> = id.outliers.iter().map(|o| (o.seq, o.line)).collect();
+    found.sort_unstable();
+    assert_eq!(found, vec![(18, Some(19)), (53, Some(54)), (89, Some(90))]);
+    assert!(id.outlier_warning.is_none());
+    assert_eq!(id.fit.after.n, 97, "the three rows are not fitted");
+}
+
+#[test]
+fn more_outliers_than_the_cap_remove_nothing_and_say_so() {
+    let rig = Rig::load(Path::new(RIG)).expect("rig");
+    // 8 of 100 rows off by 3–6 mm: more than 5 %.
+    let planted: Vec<(usize, f64)> = (0..8).map(|k| (5 + 12 * k, 3.0 + k as f64 / 2.0)).collect();
+    let rec = with_planted(4, &planted);
+    let id = identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    assert!(id.outliers.is_empty());
+    assert_eq!(id.fit.after.n, 100);
+    let warning = id.outlier_warning.expect("a warning");
+    assert!(warning.contains("more than 5 %"), "{warning}");
+}
+
+#[test]
+fn held_out_recordings_compare_nominal_kinematics_with_the_fit() {
+    let rig = Rig::load(Path::new(RIG)).expect("rig");
+    let options = IdentifyOptions {
+        heldout: vec![HeldOut {
+            name: "another day".into(),
+            recording: recording(3),
+        }],
+        ..IdentifyOptions::default()
+    };
+    let id = identify(&rig, &recording(3), Level::Full, &options).expect("identify");
+    let [h] = id.heldout.as_slice() else {
+        panic!("one report per held-out recording: {:?}", id.heldout)
+    };
+    assert_eq!((h.name.as_str(), h.points), ("another day", 100));
+    assert!(h.nominal.rms_mm > 10.0 * h.fitted.rms_mm, "{h:?}");
+    // 3-D RMS of the noise is √3 · 0.05 mm.
+    assert!(h.fitted.rms_mm < 1.3 * 3f64.sqrt() * NOISE_MM, "{h:?}");
+    let empty = IdentifyOptions {
+        heldout: vec![HeldOut {
+            name: "empty".into(),
+            recording: Recording::new(rig.chain.joints()),
+        }],
+        ..IdentifyOptions::default()
+    };
+    let e = identify(&rig, &recording(3), Level::Full, &empty).expect_err("no measured rows");
+    assert!(
+        matches!(&e, IdentifyError::HeldOutEmpty { name } if name == "empty"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_fixed_frame_leaves_nothing_to_fit_at_level_frames_and_no_rows_is_an_error() {
+    let rig = Rig::load(Path::new(RIG)).expect("rig");
+    let opts = IdentifyOptions::default();
+    let e = identify(&rig, &recording(3), Level::Frames, &opts).expect_err("nothing to fit");
+    assert!(
+        matches!(
+            e,
+            IdentifyError::NothingToFit {
+                level: Level::Frames
+            }
+        ),
+        "{e}"
+    );
+    let e = identify(
+        &rig,
+        &Recording::new(rig.chain.joints()),
+        Level::Full,
+        &opts,
+    )
+    .expect_err("no rows");
+    assert!(matches!(e, IdentifyError::NoMeasurements), "{e}");
 }

@@ -69,7 +69,7 @@ pub fn simulated_observations(rig: &Rig, world: &World, n: usize, seed: u64) -> 
         n,
         &mut rand::rngs::ChaCha8Rng::seed_from_u64(seed),
     );
-    super::observations_of(&world.record(&poses, seed << 32))
+    world.record(&poses, seed << 32).observations()
 }
 
 /// The measurements of the recording at `path`, or else `n` simulated ones of `world` drawn
@@ -90,7 +90,7 @@ pub fn measurements(
                         source,
                     }
                 })?;
-            Ok((super::observations_of(&rec), dir.display().to_string()))
+            Ok((rec.observations(), dir.display().to_string()))
         }
         (None, Some(w)) => Ok((
             simulated_observations(rig, w, n, seed),

@@ -489,13 +489,6 @@ pub fn calibrate_with_progress(
     variable::calibrate(rig, source, opts, progress)
 }
 
-/// Observations (joint values, measured point) from a recording's measured rows.
-fn observations_of(rec: &crate::recording::Recording) -> Vec<Observation> {
-    rec.measured()
-        .map(|(m, p)| Observation { q: m.q.clone(), p })
-        .collect()
-}
-
 /// Refuses a scenario made for another rig (a world that simulates another arm).
 pub fn check_scenario_rig(rig: &Rig, sc: &Scenario) -> Result<(), CalibrationError> {
     if sc.rig.name == rig.name {

@@ -2,8 +2,8 @@
 //! stored as a neural model file.
 
 use super::{
-    check_scenario_rig, observations_of, Calibrated, CalibrationError, CalibrationOptions, Figures,
-    NeuralFigures, Source,
+    check_scenario_rig, Calibrated, CalibrationError, CalibrationOptions, Figures, NeuralFigures,
+    Source,
 };
 use crate::identification::{random_poses, Observation};
 use crate::learners::LearnerKind;
@@ -76,7 +76,7 @@ fn measurements(
             );
             let rec = sc.world().record(&poses, 0);
             Ok((
-                observations_of(&rec),
+                rec.observations(),
                 format!("scenario {}, {n} random poses", sc.path.display()),
             ))
         }

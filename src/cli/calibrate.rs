@@ -92,8 +92,8 @@ pub fn run(a: Args) -> Result<()> {
 
 /// Offline calibration from the recording in `dir`, its figures printed.
 pub(crate) fn offline(rig: &Rig, dir: &Path, opts: &CalibrationOptions) -> Result<Calibrated> {
-    let rec = super::identify::read_recording(rig, dir)?;
-    let observations = super::observations(&rec);
+    let rec = super::read_recording(rig, dir)?;
+    let observations = rec.observations();
     let label = dir.display().to_string();
     let c = with_bar(opts, |p| {
         let source = Source::Offline {

@@ -1,15 +1,19 @@
-//! `rigcal compensate`: joint commands for target positions with a calibrated model.
+//! `rigcal compensate`: joint commands for target positions with a calibrated model
+//! ([`crate::compensation::compensate_targets`]).
 
-use crate::compensation::{compensate, compensate_from, CompensationOptions};
-use crate::kinematics::{ErrorParams, Robot};
+use crate::compensation::{compensate_targets, CompensationOptions};
+use crate::kinematics::Robot;
 use crate::model::ModelFile;
-use crate::recording::{read_targets, Target};
+use crate::recording::{commands_csv, read_targets};
 use anyhow::{Context, Result};
-use std::fmt::Write as _;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal compensate`.
 #[derive(Debug, clap::Args)]
+#[command(mut_args(super::help_of(
+    "out",
+    "Output CSV: one row of joint commands (`q1_deg…`) per target, same order"
+)))]
 pub struct Args {
     /// Model file written by `rigcal identify` or `rigcal calibrate`.
     #[arg(long)]
@@ -18,9 +22,8 @@ pub struct Args {
     /// are the targets.
     #[arg(long)]
     targets: PathBuf,
-    /// Output CSV: one row of joint commands (`q1_deg…`) per target, same order.
-    #[arg(long)]
-    out: PathBuf,
+    #[command(flatten)]
+    out: super::OutArg,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -28,57 +31,28 @@ pub fn run(a: Args) -> Result<()> {
     let rig = &loaded.rig;
     let chain = &rig.chain;
     let targets = read_targets(&a.targets, chain.joints())?;
-    let nominal = ErrorParams::zeros(chain.layout());
-    let opts = CompensationOptions::default();
-    let mut out = String::new();
-    let header: Vec<String> = chain
-        .joints()
-        .iter()
-        .enumerate()
-        .map(|(i, j)| j.kind.column(i + 1))
-        .collect();
-    out.push_str(&header.join(","));
-    out.push('\n');
-    let mut seed: Option<Vec<f64>> = None;
-    let mut worst = 0.0f64;
-    for (line, target) in &targets {
-        let c = match target {
-            Target::Position(p) => compensate(
-                chain,
-                loaded.errors.as_ref(),
-                p,
-                rig.held(),
-                seed.as_deref(),
-                &opts,
-            ),
-            Target::Joints(q) => {
-                let p = chain.position(q, &nominal);
-                let held: Vec<Option<f64>> = rig
-                    .held()
-                    .iter()
-                    .zip(q)
-                    .map(|(h, v)| h.map(|_| *v))
-                    .collect();
-                compensate_from(chain, loaded.errors.as_ref(), &p, &held, q.clone(), &opts)
-            }
-        }
-        .with_context(|| format!("{}: line {line}", a.targets.display()))?;
-        worst = worst.max(c.residual_mm);
-        let fields: Vec<String> = chain
-            .joints()
-            .iter()
-            .zip(&c.command)
-            .map(|(j, v)| format!("{:.6}", j.kind.to_file_units(*v)))
-            .collect();
-        let _ = writeln!(out, "{}", fields.join(","));
-        seed = Some(c.command);
-    }
-    std::fs::write(&a.out, out).with_context(|| format!("cannot write {}", a.out.display()))?;
+    let commands = compensate_targets(
+        chain,
+        loaded.errors.as_ref(),
+        rig.held(),
+        &targets,
+        &CompensationOptions::default(),
+    )
+    .map_err(|e| {
+        anyhow::Error::new(e.source).context(format!("{}: line {}", a.targets.display(), e.line))
+    })?;
+    let worst = commands.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
+    let text = commands_csv(
+        chain.joints(),
+        commands.iter().map(|c| c.command.as_slice()),
+    );
+    let out = &a.out.out;
+    std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
     println!(
         "{} targets compensated (largest modelled error left {:.1e} mm); commands written to {}",
         targets.len(),
         worst,
-        a.out.display()
+        out.display()
     );
     Ok(())
 }

@@ -13,8 +13,9 @@
 //! Everything goes to `--out`; `summary.txt` there repeats the closing table.
 
 use crate::calibration::{self, rig_check, CalibrationOptions};
+use crate::identification::Level;
 use crate::kinematics::Robot;
-use crate::model::{ModelFile, Provenance};
+use crate::model::ModelFile;
 use crate::recording::{Recording, RegistrationInfo, SessionInfo};
 use crate::report::{mean_max_rows, PathResult, PathSpec};
 use crate::rig::Rig;
@@ -286,39 +287,22 @@ fn print_session(dir: &Path, r: &crate::session::SessionReport) {
 /// Step 5: conventional identification as `rigcal identify` prints it (the demo's one call into
 /// the identification pipeline).
 fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
-    use super::identify::{
-        identify_robust, print_fit_summary, print_outliers, read_recording, Level,
-    };
-    let rec = read_recording(rig, recording)?;
-    let (chain, result, outliers, notes) = identify_robust(rig, &rec, Level::Full)?;
-    let measurements = result.after.n;
+    use super::identify::{print_identification, write_model};
+    let rec = super::read_recording(rig, recording)?;
+    let id = crate::identification::identify(rig, &rec, Level::Full, &Default::default())?;
     println!(
-        "recording {}: {} rows, {measurements} measurements used",
+        "recording {}: {} rows, {} measurements used",
         recording.display(),
-        rec.rows.len()
+        rec.rows.len(),
+        id.fit.after.n
     );
-    print_outliers(&outliers);
-    print!("{}", super::parameter_table(chain.layout(), &result, None));
-    print_fit_summary(&result);
-    let recording = Some(recording.display().to_string());
-    let mut file = ModelFile::constant(
-        rig,
-        &result,
-        Provenance {
-            recording,
-            measurements,
-            notes,
-        },
-    );
-    file.outliers = outliers;
-    file.save(out)?;
-    println!("model written to {}", out.display());
-    Ok(())
+    print_identification(&id);
+    write_model(rig, &id, recording, out)
 }
 
 /// Step 7: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
 fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
-    let rec = super::identify::read_recording(rig, recording)?;
+    let rec = super::read_recording(rig, recording)?;
     let report = crate::diagnosis::diagnose(rig, &rec, &Default::default())
         .with_context(|| format!("diagnosing {}", recording.display()))?;
     println!(

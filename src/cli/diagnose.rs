@@ -1,19 +1,17 @@
 //! `rigcal diagnose`: what physics the nominal model leaves out of a recording.
 
+use super::{RecordingArg, RigArg};
 use crate::diagnosis::{diagnose, Options};
-use crate::rig::Rig;
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal diagnose`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Rig file (TOML).
-    #[arg(long)]
-    rig: PathBuf,
-    /// Recording: a directory with measurements.csv, or a CSV file.
-    #[arg(long)]
-    recording: PathBuf,
+    #[command(flatten)]
+    rig: RigArg,
+    #[command(flatten)]
+    recording: RecordingArg,
     /// Write the diagnosis report (JSON, shared/spec/recordings.md) here.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -26,16 +24,17 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
-    let rec = super::identify::read_recording(&rig, &a.recording)?;
+    let rig = a.rig.load()?;
+    let rec = a.recording.read(&rig)?;
     let heldout = a
         .heldout
         .iter()
-        .map(|p| super::identify::read_recording(&rig, p))
+        .map(|p| super::read_recording(&rig, p))
         .collect::<Result<Vec<_>>>()?;
+    let path = &a.recording.recording;
     let report = diagnose(&rig, &rec, &Options { heldout })
-        .with_context(|| format!("diagnosing {}", a.recording.display()))?;
-    println!("recording {}", a.recording.display());
+        .with_context(|| format!("diagnosing {}", path.display()))?;
+    println!("recording {}", path.display());
     print!("{}", report.text());
     if let Some(path) = &a.json {
         let text = serde_json::to_string_pretty(&report)?;

@@ -17,7 +17,12 @@ mod session;
 mod sim_device;
 mod simulate;
 
+use crate::kinematics::Robot;
+use crate::recording::Recording;
+use crate::rig::Rig;
+use anyhow::Context as _;
 use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// rigcal — calibrate a robot arm from position measurements.
@@ -27,11 +32,69 @@ use std::process::ExitCode;
 #[derive(Debug, Parser)]
 #[command(name = "rigcal", version, about, long_about = None, propagate_version = true)]
 pub struct Cli {
-    /// More log output (-v info, -vv debug). RUST_LOG overrides.
-    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
-    verbose: u8,
+    #[command(flatten)]
+    verbosity: Verbosity,
     #[command(subcommand)]
     command: Command,
+}
+
+/// `-v`: how much the log says (every subcommand takes it).
+#[derive(Debug, Clone, Copy, clap::Args)]
+#[group(skip)]
+pub(crate) struct Verbosity {
+    /// More log output (-v info, -vv debug). RUST_LOG overrides.
+    #[arg(short, long, action = clap::ArgAction::Count, global = true)]
+    pub verbose: u8,
+}
+
+/// `--rig FILE`. A command whose rig plays a particular part says so with
+/// `#[command(mut_args(super::help_of("rig", "…")))]`.
+#[derive(Debug, Clone, clap::Args)]
+#[group(skip)]
+pub(crate) struct RigArg {
+    /// Rig file (TOML).
+    #[arg(long)]
+    pub rig: PathBuf,
+}
+
+impl RigArg {
+    /// Loads the rig file.
+    pub fn load(&self) -> anyhow::Result<Rig> {
+        Ok(Rig::load(&self.rig)?)
+    }
+}
+
+/// `--recording DIR|CSV`, the recording a command reads.
+#[derive(Debug, Clone, clap::Args)]
+#[group(skip)]
+pub(crate) struct RecordingArg {
+    /// Recording: a directory with measurements.csv, or a CSV file.
+    #[arg(long)]
+    pub recording: PathBuf,
+}
+
+impl RecordingArg {
+    /// Reads the recording for a rig.
+    pub fn read(&self, rig: &Rig) -> anyhow::Result<Recording> {
+        read_recording(rig, &self.recording)
+    }
+}
+
+/// `--out PATH`, what a command writes. Each command names what it writes with
+/// `#[command(mut_args(super::help_of("out", "…")))]`.
+#[derive(Debug, Clone, clap::Args)]
+#[group(skip)]
+pub(crate) struct OutArg {
+    /// Where to write the output.
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Sets the help text of argument `id`, for an option group whose part differs between
+/// commands. (`mut_args` rather than `mut_arg`: it keeps the arguments in their order, so the
+/// usage line does too.)
+pub(crate) fn help_of(id: &'static str, help: &'static str) -> impl FnMut(clap::Arg) -> clap::Arg {
+    move |a| if a.get_id() == id { a.help(help) } else { a }
 }
 
 #[derive(Debug, Subcommand)]
@@ -79,7 +142,7 @@ enum Command {
 /// Runs the command line and returns the process exit code.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    init_logging(cli.verbose);
+    init_logging(cli.verbosity.verbose);
     match dispatch(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -134,13 +197,16 @@ fn init_logging(verbose: u8) {
         .try_init();
 }
 
-/// Observations (joint values, measured point) from a recording's measured rows.
-pub(crate) fn observations(
-    rec: &crate::recording::Recording,
-) -> Vec<crate::identification::Observation> {
-    rec.measured()
-        .map(|(m, p)| crate::identification::Observation { q: m.q.clone(), p })
-        .collect()
+/// Reads a recording for a rig, with the path in the error.
+pub(crate) fn read_recording(rig: &Rig, path: &Path) -> anyhow::Result<Recording> {
+    Recording::read(path, rig.chain.joints()).with_context(|| {
+        format!(
+            "reading the recording {} for rig `{}` ({} joints)",
+            path.display(),
+            rig.name,
+            rig.chain.joints().len()
+        )
+    })
 }
 
 /// A table of parameter values for the terminal.

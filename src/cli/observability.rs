@@ -1,19 +1,17 @@
 //! `rigcal observability`: rank, identifiable basis and confounded parameters of a rig.
 
+use super::RigArg;
 use crate::identification::{analyse, candidate_order, identifiability, random_poses};
 use crate::kinematics::Robot;
-use crate::rig::Rig;
 use anyhow::Result;
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use std::path::PathBuf;
 
 /// Arguments of `rigcal observability`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Rig file (TOML).
-    #[arg(long)]
-    rig: PathBuf,
+    #[command(flatten)]
+    rig: RigArg,
     /// Number of random poses (uniform within the joint limits) to analyse over.
     #[arg(long, default_value_t = 100)]
     poses: usize,
@@ -26,7 +24,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
+    let rig = a.rig.load()?;
     anyhow::ensure!(a.poses >= 2, "--poses must be at least 2");
     let held = if a.all_joints {
         vec![None; rig.chain.dof()]

@@ -15,10 +15,11 @@ use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal plan`.
 #[derive(Debug, clap::Args)]
+#[command(mut_args(super::help_of("rig", "The rig file")))]
+#[command(mut_args(super::help_of("out", "Where to write the plan (CSV)")))]
 pub struct Args {
-    /// The rig file.
-    #[arg(long)]
-    rig: PathBuf,
+    #[command(flatten)]
+    rig: super::RigArg,
     /// A scenario (sim/*.toml) whose seed to use.
     #[arg(long)]
     scenario: Option<PathBuf>,
@@ -34,9 +35,8 @@ pub struct Args {
     /// Seed of the random points (default: the scenario's, else 1).
     #[arg(long)]
     seed: Option<u64>,
-    /// Where to write the plan (CSV).
-    #[arg(long)]
-    out: PathBuf,
+    #[command(flatten)]
+    out: super::OutArg,
 }
 
 /// The plan options of a command line.
@@ -113,15 +113,16 @@ pub(crate) fn describe(e: &RigTimeEstimate) -> String {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
+    let rig = a.rig.load()?;
+    let out = &a.out.out;
     let seed = match (&a.seed, &a.scenario) {
         (Some(s), _) => *s,
         (None, Some(path)) => Scenario::load(path, None)?.seed,
         (None, None) => 1,
     };
     let p = plan(&rig, &options(a.points, a.regions, a.reference_every, seed))?;
-    report_dropped(&rig, &p, &a.out)?;
-    write_plan(&a.out, &rig, &p.points)?;
+    report_dropped(&rig, &p, out)?;
+    write_plan(out, &rig, &p.points)?;
     let e = estimate(
         &rig,
         &p.points,
@@ -135,7 +136,7 @@ pub fn run(a: Args) -> Result<()> {
             .iter()
             .filter(|x| x.region == crate::session::plan::REFERENCE_REGION)
             .count(),
-        a.out.display()
+        out.display()
     );
     println!("{}", describe(&e));
     Ok(())

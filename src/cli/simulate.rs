@@ -6,7 +6,7 @@
 
 use crate::identification::random_poses;
 use crate::kinematics::Robot;
-use crate::recording::{read_targets, RegistrationInfo, SessionInfo, Target};
+use crate::recording::{read_poses, RegistrationInfo, SessionInfo};
 use crate::rig::{Instrument, Rig};
 use crate::world::{setup_rng, Scenario};
 use anyhow::{bail, Context, Result};
@@ -15,10 +15,14 @@ use std::path::{Path, PathBuf};
 /// Arguments of `rigcal simulate`.
 #[derive(Debug, clap::Args)]
 #[command(group(clap::ArgGroup::new("which").required(true).args(["poses", "random"])))]
+#[command(mut_args(super::help_of(
+    "rig",
+    "The rig file the session runs on (must be the scenario's rig)"
+)))]
+#[command(mut_args(super::help_of("out", "Directory for measurements.csv and session.toml")))]
 pub struct Args {
-    /// The rig file the session runs on (must be the scenario's rig).
-    #[arg(long)]
-    rig: PathBuf,
+    #[command(flatten)]
+    rig: super::RigArg,
     /// The scenario file (sim/*.toml): the truth to simulate.
     #[arg(long)]
     scenario: PathBuf,
@@ -31,20 +35,20 @@ pub struct Args {
     /// Overrides the scenario's seed.
     #[arg(long)]
     seed: Option<u64>,
-    /// Directory for measurements.csv and session.toml.
-    #[arg(long)]
-    out: PathBuf,
+    #[command(flatten)]
+    out: super::OutArg,
 }
 
 /// Index of the setup generator that draws `--random` poses (apart from the effects').
 const POSES_STREAM: usize = usize::MAX - 1;
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
+    let rig = a.rig.load()?;
     let scenario = Scenario::load(&a.scenario, a.seed)?;
-    check_same_rig(&rig, &scenario, &a.rig)?;
+    check_same_rig(&rig, &scenario, &a.rig.rig)?;
     let poses = match (&a.poses, a.random) {
-        (Some(path), None) => poses_from_file(path, &rig)?,
+        (Some(path), None) => read_poses(path, rig.chain.joints())
+            .with_context(|| format!("reading poses from {}", path.display()))?,
         (None, Some(n)) => {
             let mut rng = setup_rng(scenario.seed, POSES_STREAM);
             random_poses(rig.chain.joints(), rig.held(), n, &mut rng)
@@ -54,7 +58,7 @@ pub fn run(a: Args) -> Result<()> {
     let world = scenario.world();
     let mut rec = world.record(&poses, 1);
     rec.session = Some(session_info(&rig, &scenario, &a));
-    rec.write_dir(&a.out)?;
+    rec.write_dir(&a.out.out)?;
     let measured = rec.measured().count();
     println!(
         "simulated {} poses on {} with {} (seed {}): {} measured, {} skipped → {}",
@@ -64,7 +68,7 @@ pub fn run(a: Args) -> Result<()> {
         scenario.seed,
         measured,
         poses.len() - measured,
-        a.out.display()
+        a.out.out.display()
     );
     Ok(())
 }
@@ -83,21 +87,6 @@ fn check_same_rig(rig: &Rig, scenario: &Scenario, rig_path: &Path) -> Result<()>
     Ok(())
 }
 
-fn poses_from_file(path: &Path, rig: &Rig) -> Result<Vec<Vec<f64>>> {
-    let targets = read_targets(path, rig.chain.joints())
-        .with_context(|| format!("reading poses from {}", path.display()))?;
-    targets
-        .into_iter()
-        .map(|(line, t)| match t {
-            Target::Joints(q) => Ok(q),
-            Target::Position(_) => bail!(
-                "{}: line {line}: a poses file needs joint columns (q1_deg…), not x_mm,y_mm,z_mm",
-                path.display()
-            ),
-        })
-        .collect()
-}
-
 fn session_info(rig: &Rig, scenario: &Scenario, a: &Args) -> SessionInfo {
     // The simulated session measures through the nominal registration, as a session before any
     // registration step would.
@@ -110,7 +99,7 @@ fn session_info(rig: &Rig, scenario: &Scenario, a: &Args) -> SessionInfo {
         _ => None,
     };
     SessionInfo {
-        rig: Some(a.rig.display().to_string()),
+        rig: Some(a.rig.rig.display().to_string()),
         scenario: Some(a.scenario.display().to_string()),
         seed: Some(scenario.seed),
         registration,

@@ -57,11 +57,10 @@ pub mod unnamed;
 
 pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
 
-use crate::identification::registration::kabsch;
-use crate::identification::{analyse, candidate_order, fit, FitError, FitOptions, Observation};
+use crate::identification::{fit_geometry, FitError, Level, Observation};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::recording::{Recording, Status};
-use crate::rig::{FrameMode, Rig};
+use crate::rig::Rig;
 use nalgebra::{DMatrix, Vector3};
 
 /// Overall false-claim rate of the diagnosis.
@@ -508,36 +507,20 @@ pub fn prepare(
     })
 }
 
-/// Fits the standard model: the identifiable geometric parameters (registration included).
+/// Fits the standard model: the identifiable geometric parameters (registration included), by
+/// the geometric fit of `rigcal identify --level full`. The data, Jacobian and residuals are
+/// those of the started chain (a free frame relative to its closed-form start).
 pub fn standard_fit(rig: &Rig, rec: &Recording) -> Result<Standard, DiagnoseError> {
     let nominal = ErrorParams::zeros(rig.chain.layout());
     let pre = prepare(&rig.chain, &nominal, rec)?;
-    let chain = if rig.calibration.measurement_frame == FrameMode::Free {
-        let model: Vec<_> = pre
-            .obs
-            .iter()
-            .map(|o| rig.chain.position(&o.q, &nominal))
-            .collect();
-        let measured: Vec<_> = pre.obs.iter().map(|o| o.p).collect();
-        rig.chain.with_frame(kabsch(&model, &measured))
-    } else {
-        rig.chain.clone()
-    };
+    let geometric = fit_geometry(rig, &pre.obs, &Level::Full.candidates(rig))?;
     let poses: Vec<Vec<f64>> = pre.obs.iter().map(|o| o.q.clone()).collect();
-    let ident = analyse(&chain, &poses, &candidate_order(rig));
-    let result = fit(
-        &chain,
-        &pre.obs,
-        &nominal,
-        &ident.basis,
-        &FitOptions::default(),
-    )?;
-    let data = prepare(&chain, &result.params, rec)?;
+    let data = prepare(&geometric.started, &geometric.fit.params, rec)?;
     let jacobian = crate::identification::identifiability::stacked_jacobian(
-        &chain,
-        &result.params,
+        &geometric.started,
+        &geometric.fit.params,
         &poses,
-        &ident.basis,
+        geometric.basis(),
     );
     let residual = residual_of(&data);
     let (instrument_var, instrument_note) = quantisation_variance(rig, rec);
@@ -549,7 +532,7 @@ pub fn standard_fit(rig: &Rig, rec: &Recording) -> Result<Standard, DiagnoseErro
     Ok(Standard {
         nuisance,
         data,
-        free: ident.basis,
+        free: geometric.identifiability.basis,
         residual,
         jacobian,
         instrument_var,

@@ -9,14 +9,8 @@ use super::identifiability::kappa_eq4;
 use crate::kinematics::{ErrorParams, Robot};
 use nalgebra::{DMatrix, DVector, Vector3};
 
-/// A joint vector and the point measured there (mm).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Observation {
-    /// Joint values (rad or mm).
-    pub q: Vec<f64>,
-    /// Measured point (mm).
-    pub p: Vector3<f64>,
-}
+// Observations come from recordings; identification reads them.
+pub use crate::recording::Observation;
 
 /// Settings of the fit.
 #[derive(Debug, Clone)]

@@ -10,16 +10,27 @@
 //!   with its row and size.
 //! * [`registration`]: the rigid measurement frame (table to world), closed form then refined by
 //!   the same fit with only the frame free — one mechanism for fixed and free frames.
+//! * [`geometric`]: the sequence every geometric fit of a rig runs — Kabsch start for a free
+//!   frame, analysis, fit — at a [`Level`]; the diagnosis's standard model is this fit.
+//! * [`pipeline`]: [`identify`], conventional calibration of a recording: the geometric fit with
+//!   outliers removed and the fitted model checked on held-out recordings.
 //!
 //! Units: mm and rad inside.
 
 pub mod fit;
+pub mod geometric;
 pub mod identifiability;
 pub mod outliers;
+pub mod pipeline;
 pub mod registration;
 
 pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};
+pub use geometric::{fit_geometry, GeometricFit, Level};
 pub use identifiability::{analyse, candidate_order, Identifiability};
+pub use pipeline::{
+    heldout_report, identify, identify_at, HeldOut, HeldOutReport, Identification, IdentifyError,
+    IdentifyOptions,
+};
 pub use registration::{register, Registration};
 
 use crate::kinematics::{JointKind, JointSpec};

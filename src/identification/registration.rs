@@ -8,7 +8,8 @@
 
 use super::fit::{fit, FitError, FitOptions, Observation, ResidualStats};
 use crate::kinematics::{ErrorParams, Robot, SerialChain, TransformId};
-use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
+use crate::recording::{Recording, RegistrationInfo};
+use nalgebra::{Isometry3, Matrix3, Point3, Rotation3, Translation3, UnitQuaternion, Vector3};
 
 /// A fitted registration.
 #[derive(Debug, Clone)]
@@ -59,6 +60,61 @@ pub fn register(
         sigma: result.sigma,
         n: obs.len(),
     })
+}
+
+/// Why a recording could not be registered.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum RegisterError {
+    /// Too few measured rows carry table coordinates.
+    #[error("{found} measured rows carry table coordinates; registration needs at least 3 (columns table_x_mm, table_y_mm, table_z_mm)")]
+    TooFewTablePoints {
+        /// Rows that carry them.
+        found: usize,
+    },
+    /// The fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+}
+
+/// Registers a recording's table coordinates to the world with the nominal kinematics: the
+/// frame of the measured rows that carry `table_x_mm, table_y_mm, table_z_mm`.
+pub fn register_recording(
+    chain: &SerialChain,
+    rec: &Recording,
+) -> Result<Registration, RegisterError> {
+    let obs = rec.table_observations();
+    if obs.len() < 3 {
+        return Err(RegisterError::TooFewTablePoints { found: obs.len() });
+    }
+    Ok(register(chain, &ErrorParams::zeros(chain.layout()), &obs)?)
+}
+
+impl Registration {
+    /// The registration in file units, as a recording's `session.toml` stores it.
+    pub fn info(&self) -> RegistrationInfo {
+        let (xyz, rpy) = to_xyz_rpy(&self.world_from_instrument);
+        RegistrationInfo {
+            translation_mm: xyz,
+            rpy_deg: rpy,
+            rms_mm: Some(self.stats.rms_mm),
+        }
+    }
+
+    /// A registered copy of a recording: world positions recomputed from the table
+    /// coordinates of every row that has them, and the registration stored in its session.
+    pub fn apply(&self, rec: &Recording) -> Recording {
+        let mut out = rec.clone();
+        for m in out.rows.iter_mut() {
+            if let Some(t) = m.table {
+                m.position = Some((self.world_from_instrument * Point3::from(t)).coords);
+            }
+        }
+        let mut info = out.session.clone().unwrap_or_default();
+        info.registration = Some(self.info());
+        out.session = Some(info);
+        out
+    }
 }
 
 /// The rigid transform T minimising Σ |T·a_i − b_i|² (Kabsch/Umeyama without scale).

@@ -6,6 +6,12 @@
 //! line and column named: nothing is silently dropped. Writing appends and flushes row by row
 //! so a session killed at any instant leaves valid CSV (at worst a torn last line, which
 //! [`RecordingWriter::open_append`] detects and discards).
+//!
+//! [`import`] turns a foreign CSV (laser tracker, motion capture) into a recording.
+
+pub mod import;
+
+pub use import::{import_csv, AngleUnit, CellAt, ImportError, ImportSpec, LengthUnit};
 
 use crate::kinematics::JointSpec;
 use nalgebra::Vector3;
@@ -173,6 +179,15 @@ pub struct RegistrationInfo {
     pub rms_mm: Option<f64>,
 }
 
+/// A joint vector and the point measured there (mm): what identification fits.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Observation {
+    /// Joint values (rad or mm).
+    pub q: Vec<f64>,
+    /// Measured point (mm).
+    pub p: Vector3<f64>,
+}
+
 /// A recording in memory.
 #[derive(Debug, Clone, Default)]
 pub struct Recording {
@@ -203,6 +218,23 @@ impl Recording {
             .iter()
             .filter(|m| m.status == Status::Ok)
             .filter_map(|m| m.position.map(|p| (m, p)))
+    }
+
+    /// The measured rows as observations (joint values, measured point), in row order.
+    pub fn observations(&self) -> Vec<Observation> {
+        self.measured()
+            .map(|(m, p)| Observation { q: m.q.clone(), p })
+            .collect()
+    }
+
+    /// The measurement rows (`status` ok) that carry table coordinates, as observations of the
+    /// table point: what a registration fits.
+    pub fn table_observations(&self) -> Vec<Observation> {
+        self.rows
+            .iter()
+            .filter(|m| m.status == Status::Ok)
+            .filter_map(|m| m.table.map(|p| Observation { q: m.q.clone(), p }))
+            .collect()
     }
 
     /// Reads a recording directory (or a bare CSV file).
@@ -733,6 +765,83 @@ mod tests {
     use super::*;
     use crate::kinematics::JointKind;
 
+    /// Rows: ok with a point and a table point, via, ok without a point, skipped, ok.
+    fn mixed() -> Recording {
+        let mut rec = Recording::new(&joints());
+        let row = |seq: u64, status: Status, p: Option<[f64; 3]>| Measurement {
+            seq,
+            q: vec![0.1 * seq as f64, 10.0 * seq as f64],
+            position: p.map(Vector3::from),
+            status,
+            ..Default::default()
+        };
+        rec.rows = vec![
+            Measurement {
+                table: Some(Vector3::new(7.0, 8.0, 9.0)),
+                ..row(1, Status::Ok, Some([1.0, 2.0, 3.0]))
+            },
+            row(2, Status::Via, None),
+            Measurement {
+                table: Some(Vector3::new(1.0, 1.0, 1.0)),
+                ..row(3, Status::Ok, None)
+            },
+            row(4, Status::Skipped("out of reach".into()), None),
+            row(5, Status::Ok, Some([4.0, 5.0, 6.0])),
+        ];
+        rec
+    }
+
+    #[test]
+    fn observations_are_the_measured_rows_in_order() {
+        let rec = mixed();
+        let obs = rec.observations();
+        assert_eq!(
+            obs,
+            vec![
+                Observation {
+                    q: vec![0.1, 10.0],
+                    p: Vector3::new(1.0, 2.0, 3.0)
+                },
+                Observation {
+                    q: vec![0.5, 50.0],
+                    p: Vector3::new(4.0, 5.0, 6.0)
+                },
+            ]
+        );
+        // A registration fits table points, which a row may carry without a world point.
+        let table: Vec<Vector3<f64>> = rec.table_observations().iter().map(|o| o.p).collect();
+        assert_eq!(
+            table,
+            vec![Vector3::new(7.0, 8.0, 9.0), Vector3::new(1.0, 1.0, 1.0)]
+        );
+    }
+
+    #[test]
+    fn commands_csv_is_in_file_units_and_reads_back_as_poses() {
+        let text = commands_csv(
+            &joints(),
+            [[0.5f64.to_radians(), 12.25].as_slice(), &[-1.0, 0.0]],
+        );
+        assert_eq!(
+            text,
+            "q1_deg,q2_mm\n0.500000,12.250000\n-57.295780,0.000000\n"
+        );
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("poses.csv");
+        std::fs::write(&path, &text).expect("write");
+        let poses = read_poses(&path, &joints()).expect("read");
+        assert!((poses[0][0] - 0.5f64.to_radians()).abs() < 1e-9);
+        assert_eq!(poses[1][1], 0.0);
+        std::fs::write(&path, "x_mm,y_mm,z_mm\n1,2,3\n").expect("write");
+        let e = read_poses(&path, &joints()).expect_err("positions are not poses");
+        assert!(
+            e.to_string().ends_with(
+                "line 2: a poses file needs joint columns (q1_deg…), not x_mm,y_mm,z_mm"
+            ),
+            "{e}"
+        );
+    }
+
     fn joints() -> Vec<JointSpec> {
         vec![
             JointSpec {
@@ -853,6 +962,21 @@ pub enum Target {
     Joints(Vec<f64>),
 }
 
+/// Reads a poses CSV: one column per joint (`q1_deg…`), one pose per row, in row order.
+pub fn read_poses(path: &Path, joints: &[JointSpec]) -> Result<Vec<Vec<f64>>, RecordingError> {
+    read_targets(path, joints)?
+        .into_iter()
+        .map(|(line, t)| match t {
+            Target::Joints(q) => Ok(q),
+            Target::Position(_) => Err(RecordingError::Malformed {
+                path: path.to_path_buf(),
+                line,
+                reason: "a poses file needs joint columns (q1_deg…), not x_mm,y_mm,z_mm".into(),
+            }),
+        })
+        .collect()
+}
+
 /// Reads a targets CSV: columns `x_mm,y_mm,z_mm`, or one column per joint (`q1_deg…`). Returns
 /// each target with its line number.
 pub fn read_targets(
@@ -917,4 +1041,28 @@ pub fn read_targets(
         out.push((line, target));
     }
     Ok(out)
+}
+
+/// The text of a joint-commands CSV: a header of joint columns (`q1_deg…`) and one row per
+/// command (rad or mm inside), in file units with six decimals. [`read_targets`] reads it back.
+pub fn commands_csv<'a>(
+    joints: &[JointSpec],
+    commands: impl IntoIterator<Item = &'a [f64]>,
+) -> String {
+    let header: Vec<String> = joints
+        .iter()
+        .enumerate()
+        .map(|(i, j)| j.kind.column(i + 1))
+        .collect();
+    let mut out = header.join(",");
+    out.push('\n');
+    for q in commands {
+        let fields: Vec<String> = joints
+            .iter()
+            .zip(q)
+            .map(|(j, v)| format!("{:.6}", j.kind.to_file_units(*v)))
+            .collect();
+        let _ = writeln!(out, "{}", fields.join(","));
+    }
+    out
 }

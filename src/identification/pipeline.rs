@@ -1,0 +1,206 @@
+//! Conventional calibration of a recording, end to end: the geometric fit at a level
+//! ([`super::geometric`]), robust outlier removal that refits after each removal
+//! ([`super::outliers`]), and the fitted model's error on held-out recordings.
+//!
+//! The parameters returned are absolute (free frames included), for the rig's own chain, so a
+//! model file written from them stands alone.
+
+use super::geometric::{fit_geometry, Level};
+use super::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
+use super::{errors, FitError, FitResult, ResidualStats};
+use crate::kinematics::{Robot, SerialChain, TransformId};
+use crate::recording::{Observation, Recording};
+use crate::rig::Rig;
+
+/// A recording to check the fitted model on, with the name reports give it.
+#[derive(Debug, Clone)]
+pub struct HeldOut {
+    /// What to call it (its path, say).
+    pub name: String,
+    /// The recording.
+    pub recording: Recording,
+}
+
+/// Settings of [`identify`].
+#[derive(Debug, Clone, Default)]
+pub struct IdentifyOptions {
+    /// Recordings not fitted (another day's session, say) to report the model's error on.
+    pub heldout: Vec<HeldOut>,
+    /// The outlier search.
+    pub outliers: OutlierSettings,
+}
+
+/// The error of a fitted model on one held-out recording (mm).
+#[derive(Debug, Clone, PartialEq)]
+pub struct HeldOutReport {
+    /// The held-out recording's name.
+    pub name: String,
+    /// Its measured points.
+    pub points: usize,
+    /// With nominal kinematics: every parameter zero except the fitted measurement frame and
+    /// marker, so it compares kinematics, not frames.
+    pub nominal: ResidualStats,
+    /// With the fitted model.
+    pub fitted: ResidualStats,
+}
+
+/// The outcome of [`identify`].
+#[derive(Debug, Clone)]
+pub struct Identification {
+    /// The rig's chain, which the parameters apply to.
+    pub chain: SerialChain,
+    /// The fit without the outliers, frame parameters absolute.
+    pub fit: FitResult,
+    /// The rows removed as outliers, in the order found.
+    pub outliers: Vec<Outlier>,
+    /// Set when more rows failed than the outlier search may remove: the data or the model are
+    /// bad, nothing was removed, and this says so (for the user and the model file's notes).
+    pub outlier_warning: Option<String>,
+    /// One report per held-out recording, in the order given.
+    pub heldout: Vec<HeldOutReport>,
+}
+
+/// Why an identification failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum IdentifyError {
+    /// The recording has no measured rows.
+    #[error("the recording has no measured rows (status ok with x_mm, y_mm, z_mm)")]
+    NoMeasurements,
+    /// The level leaves no parameter to fit on this rig.
+    #[error("nothing to fit at level {level:?}: the rig's measurement frame and marker are fixed (set them free in [calibration] or use --level full)")]
+    NothingToFit {
+        /// The level asked for.
+        level: Level,
+    },
+    /// The least-squares fit failed.
+    #[error("identification failed")]
+    Fit(#[source] FitError),
+    /// A held-out recording has no measured rows.
+    #[error("held-out recording {name}: no measured rows")]
+    HeldOutEmpty {
+        /// Its name.
+        name: String,
+    },
+}
+
+/// Identifies a rig's error parameters from a recording at a level: outliers are found
+/// robustly and removed, each removal refitting the model without the row; more than
+/// [`OutlierSettings::max_fraction`] of the rows failing removes nothing and sets
+/// [`Identification::outlier_warning`]. Then each held-out recording is checked.
+pub fn identify(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+    opts: &IdentifyOptions,
+) -> Result<Identification, IdentifyError> {
+    let (chain, fit, outliers, outlier_warning) = identify_robust(rig, rec, level, &opts.outliers)?;
+    let heldout = opts
+        .heldout
+        .iter()
+        .map(|h| heldout_report(&chain, &fit, h))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(Identification {
+        chain,
+        fit,
+        outliers,
+        outlier_warning,
+        heldout,
+    })
+}
+
+/// Fits observations at a level: the rig's chain and the fit with absolute frame parameters.
+pub fn identify_at(
+    rig: &Rig,
+    obs: &[Observation],
+    level: Level,
+) -> Result<(SerialChain, FitResult), IdentifyError> {
+    if obs.is_empty() {
+        return Err(IdentifyError::NoMeasurements);
+    }
+    let candidates = level.candidates(rig);
+    if candidates.is_empty() {
+        return Err(IdentifyError::NothingToFit { level });
+    }
+    let geometric = fit_geometry(rig, obs, &candidates).map_err(IdentifyError::Fit)?;
+    Ok(geometric.into_absolute())
+}
+
+/// The robust fit: (chain, fit, outliers removed, warning when there were too many to remove).
+fn identify_robust(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+    settings: &OutlierSettings,
+) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
+    let obs = rec.observations();
+    // The cheap refusals first, so they are not reported as failures of the outlier search.
+    if obs.is_empty() {
+        return Err(IdentifyError::NoMeasurements);
+    }
+    if level.candidates(rig).is_empty() {
+        return Err(IdentifyError::NothingToFit { level });
+    }
+    let ids = measured_ids(rec);
+    let mut last = None;
+    let search = remove_outliers(&ids, settings, |kept| {
+        // The removed rows stay in the recording (joints, order), they are only not fitted.
+        let fitted: Vec<Observation> = kept.iter().map(|&i| obs[i].clone()).collect();
+        let (chain, result) = identify_at(rig, &fitted, level)?;
+        let residuals = errors(&chain, &obs, &result.params);
+        let p = result.free.len();
+        last = Some((chain, result));
+        Ok::<_, IdentifyError>((residuals, p))
+    });
+    match search {
+        Ok((outliers, _)) => {
+            let (chain, result) = match last {
+                Some(fitted) => fitted,
+                None => identify_at(rig, &obs, level)?,
+            };
+            Ok((chain, result, outliers, None))
+        }
+        Err(e @ OutlierError::TooMany { .. }) => {
+            let (chain, result) = identify_at(rig, &obs, level)?;
+            Ok((chain, result, Vec::new(), Some(e.to_string())))
+        }
+        Err(OutlierError::Fit(e)) => Err(e),
+    }
+}
+
+/// (seq, CSV line) of each measured row, in the order of [`Recording::observations`].
+fn measured_ids(rec: &Recording) -> Vec<(u64, Option<u64>)> {
+    rec.rows
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| m.status == crate::recording::Status::Ok && m.position.is_some())
+        .map(|(k, m)| (m.seq, rec.lines.get(k).copied()))
+        .collect()
+}
+
+/// The fitted model's error on a held-out recording, beside nominal kinematics seen through the
+/// fitted frame and marker.
+pub fn heldout_report(
+    chain: &SerialChain,
+    fit: &FitResult,
+    held: &HeldOut,
+) -> Result<HeldOutReport, IdentifyError> {
+    let obs = held.recording.observations();
+    if obs.is_empty() {
+        return Err(IdentifyError::HeldOutEmpty {
+            name: held.name.clone(),
+        });
+    }
+    let mut nominal = fit.params.clone();
+    for (k, id) in chain.layout().ids().iter().enumerate() {
+        if !matches!(id.transform, TransformId::Frame | TransformId::Marker) {
+            nominal.set(k, 0.0);
+        }
+    }
+    Ok(HeldOutReport {
+        name: held.name.clone(),
+        points: obs.len(),
+        nominal: ResidualStats::of(&errors(chain, &obs, &nominal)),
+        fitted: ResidualStats::of(&errors(chain, &obs, &fit.params)),
+    })
+}
