@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use rigcal::devices::arm_movemaster::MovemasterArm;
 use rigcal::devices::clock::RealClock;
-use rigcal::devices::config::DevicesConfig;
+use rigcal::rig::devices::DevicesConfig;
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::emulators::{serve_bytes, Profile, SlcanAdapter};
 use rigcal::devices::factory::{sim_emulators, SimSetup};

@@ -16,7 +16,7 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::devices::config::ArmConfig;
+use crate::rig::devices::ArmConfig;
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::protocols::movemaster::{

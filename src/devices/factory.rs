@@ -10,7 +10,7 @@ use std::sync::{Arc, Mutex};
 
 use crate::devices::arm_movemaster::MovemasterArm;
 use crate::devices::clock::{RealClock, SharedClock, VirtualClock};
-use crate::devices::config::{DevicesConfig, TableConfig};
+use crate::rig::devices::{DevicesConfig, TableConfig};
 use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
 use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
 use crate::devices::emulators::sensor::SimPointSensor;

@@ -4,7 +4,6 @@
 //! | module | holds |
 //! |---|---|
 //! | [`traits`] | [`Arm`], [`Table`], [`Panel`], [`PointSensor`] and [`DeviceError`] |
-//! | [`config`] | the rig file's `[devices]` section |
 //! | [`arm_movemaster`], [`table_canopen`], [`panel_penmount`] | drivers over any transport |
 //! | [`safety`] | joint limits, table travel, ascending z: refused before a byte is sent |
 //! | [`contact`] | the contact measurement and the approach-speed rule |
@@ -17,7 +16,6 @@
 
 pub mod arm_movemaster;
 pub mod clock;
-pub mod config;
 pub mod contact;
 pub mod emulators;
 pub mod factory;
@@ -26,7 +24,6 @@ pub mod safety;
 pub mod table_canopen;
 pub mod traits;
 
-pub use config::DevicesConfig;
 pub use factory::{open_devices, Backend, InstrumentDevices, RigDevices, SimControls, SimSetup};
 pub use traits::{
     Arm, ArmPose, ArmStatus, DeviceError, DeviceErrorKind, DeviceName, Panel, PanelStats,

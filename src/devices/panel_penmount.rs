@@ -12,7 +12,7 @@
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::devices::config::PanelConfig;
+use crate::rig::devices::PanelConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Panel, PanelStats, Touch};
 use crate::protocols::penmount::PenMountDecoder;
 use crate::transports::{ByteTransport, TransportError};

@@ -23,7 +23,7 @@
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::devices::config::TableConfig;
+use crate::rig::devices::TableConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Table};
 use crate::protocols::canopen::{
     next_controlword_towards_enabled, od, CanOpenMessage, Controlword, DriveState, Nmt, NmtCommand,

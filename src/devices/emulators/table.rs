@@ -19,7 +19,7 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::devices::config::TableConfig;
+use crate::rig::devices::TableConfig;
 use crate::devices::emulators::{lock, FrameEmulator, Profile, SharedTable};
 use crate::protocols::can::CanFrame;
 use crate::protocols::canopen::{

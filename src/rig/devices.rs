@@ -1,5 +1,5 @@
-//! The `[devices]` section of a rig file: how each device is reached and the numbers its driver
-//! and emulator need. Degrees and millimetres, milliseconds for times.
+//! The `[devices]` section of a rig file: how each device is reached and the numbers its driver,
+//! its emulator and the session's procedures need. Degrees and millimetres, milliseconds for times.
 //!
 //! ```toml
 //! [devices.arm]
