@@ -12,8 +12,8 @@ use rand::{RngExt, SeedableRng};
 use rigcal::devices::contact::{approach_speed, measure_contact};
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::{
-    open_devices, Arm, ArmPose, ArmStatus, Backend, DeviceError, InstrumentDevices, RigDevices,
-    SimSetup, Table,
+    open_devices, open_rig, Arm, ArmPose, ArmStatus, Backend, DeviceError, InstrumentDevices,
+    OpenedRig, RigDevices, SimClock, SimSetup, Table,
 };
 use rigcal::kinematics::{JointSpec, Robot};
 use rigcal::recording::{Recording, Status};
@@ -109,17 +109,8 @@ fn a_contact_through_drivers_and_emulators_agrees_with_the_world() {
     assert!(checked >= 4);
 }
 
-fn sim_devices(
-    sc: &Scenario,
-) -> (
-    RigDevices,
-    rigcal::devices::emulators::world_physics::SharedWorld,
-) {
-    let (setup, world) = SimSetup::from_scenario(sc);
-    (
-        open_devices(&sc.rig, Backend::Simulated(setup)).unwrap(),
-        world,
-    )
+fn sim_devices(sc: &Scenario) -> OpenedRig {
+    open_rig(&sc.rig, Some(sc), SimClock::Virtual).unwrap()
 }
 
 fn options(dir: &Path) -> SessionOptions {
@@ -147,11 +138,10 @@ fn a_dry_run_session_end_to_end_is_accepted_by_identify() {
     let rig = sc.rig.clone();
     let pts = points(&rig, 36, 2);
     let dir = tempfile::tempdir().unwrap();
-    let (d, world) = sim_devices(&sc);
+    let d = sim_devices(&sc);
     let report = run_session(
         &rig,
         d,
-        Some(world),
         &pts,
         options(dir.path()),
         &Progress::Quiet,
@@ -604,7 +594,7 @@ fn injected_faults_leave_a_complete_recording_with_every_skip_explained() {
             table_mm: [400.0, 280.0, 300.0],
         },
     );
-    let (d, world) = sim_devices(&sc);
+    let OpenedRig { devices: d, hook } = sim_devices(&sc);
     let sim = d.sim.clone().unwrap();
     let (af, tf, pf) = (
         sim.arm.clone().unwrap(),
@@ -612,7 +602,6 @@ fn injected_faults_leave_a_complete_recording_with_every_skip_explained() {
         sim.panel.clone().unwrap(),
     );
     let (a1, a2, t1, p1, p2) = (af.clone(), af, tf, pf.clone(), pf.clone());
-    let _ = &world;
     let arm_at: Vec<(usize, Box<dyn Fn() + Send>)> = vec![
         // A dropped reply (lost bytes): the move times out and is retried.
         (20, Box::new(move || a1.lock().unwrap().drop_replies = 1)),
@@ -655,8 +644,7 @@ fn injected_faults_leave_a_complete_recording_with_every_skip_explained() {
     let dir = tempfile::tempdir().unwrap();
     let report = run_session(
         &rig,
-        d,
-        Some(world),
+        OpenedRig { devices: d, hook },
         &pts,
         options(dir.path()),
         &Progress::Quiet,
@@ -741,10 +729,10 @@ proptest! {
         let pts = plan(&rig, &PlanOptions {
             points: n, regions, reference_every: 7, seed, ..PlanOptions::default()
         }).unwrap().points;
-        let (d, world) = sim_devices(&sc);
+        let OpenedRig { devices: d, hook } = sim_devices(&sc);
         let (d, log) = wrap(d, vec![], vec![]);
         let dir = tempfile::tempdir().unwrap();
-        let report = run_session(&rig, d, Some(world), &pts, options(dir.path()), &Progress::Quiet)
+        let report = run_session(&rig, OpenedRig { devices: d, hook }, &pts, options(dir.path()), &Progress::Quiet)
             .unwrap();
         // Nothing refused by the safety wrappers (the known phantom-touch skips aside).
         prop_assert!(
@@ -808,12 +796,11 @@ fn a_dry_run_on_the_ideal_rig_reads_the_true_tip_at_every_commanded_pose() {
     .unwrap()
     .points;
     let dir = tempfile::tempdir().unwrap();
-    let (d, world) = sim_devices(&sc);
-    assert!(!d.has_table());
+    let d = sim_devices(&sc);
+    assert!(!d.devices.has_table());
     let report = run_session(
         &rig,
         d,
-        Some(world),
         &pts,
         options(dir.path()),
         &Progress::Quiet,

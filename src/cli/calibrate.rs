@@ -187,11 +187,11 @@ fn refuse_other_options(a: &Args, dir: &std::path::Path) -> Result<()> {
 fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Result<ModelFile> {
     use crate::session::{recorded_requests, Session, SessionMeasurer, SessionOptions};
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
-    let (devices, world) = super::session::open_rig(rig, scenario.as_ref(), false)?;
+    let opened = crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?;
     let mut opts = SessionOptions::new(dir);
     opts.seed = a.seed;
     opts.resume = a.resume;
-    opts.fsync = !devices.clock.is_virtual();
+    opts.fsync = !opened.devices.clock.is_virtual();
     opts.info = crate::recording::SessionInfo {
         rig: Some(a.rig.display().to_string()),
         scenario: a.sim.as_ref().map(|p| p.display().to_string()),
@@ -202,7 +202,7 @@ fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Resu
     if a.resume {
         refuse_other_options(a, dir)?;
     }
-    let mut session = Session::open(rig, devices, world, opts)?;
+    let mut session = Session::open(rig, opened, opts)?;
     // Read after opening: a resumed session has cut its recording back to the last finished
     // point.
     let recorded = if a.resume {

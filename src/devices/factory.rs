@@ -5,6 +5,9 @@
 //! Transports per device come from `[devices]`: `sim` (an emulator behind a polled link), a
 //! serial port path (arm, panel), `can0` / `socketcan:can0` or `slcan:/dev/ttyACM0` (table).
 //! Nothing else differs between a dry run and the rig; no cargo feature chooses.
+//!
+//! A session opens its rig with [`open_rig`]: the devices plus the opaque [`RigHook`] through
+//! which a dry run's world learns what the protocols do not carry (see [`crate::devices::hook`]).
 
 use std::sync::{Arc, Mutex};
 
@@ -15,6 +18,8 @@ use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
 use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
 use crate::devices::emulators::sensor::SimPointSensor;
 use crate::devices::emulators::table::{TableEmulator, TableFaultHandle};
+use crate::devices::emulators::world_physics::WorldHook;
+use crate::devices::hook::{NoHook, RigHook};
 use crate::devices::emulators::{
     NominalPhysics, PolledCan, PolledSerial, SharedPhysics, SharedTable, TableTruth,
 };
@@ -23,6 +28,7 @@ use crate::devices::safety::{LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
 use crate::rig::{Instrument, Rig, TablePanel};
+use crate::world::Scenario;
 use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
 
 /// The simulated world the emulators use.
@@ -270,6 +276,51 @@ fn open_can(t: &TableConfig) -> Result<Box<dyn CanBus>, DeviceError> {
             key: "table.transport".into(),
             reason: format!("SocketCAN ({ifname}) exists only on Linux; use \"slcan:PORT\""),
         })
+    }
+}
+
+/// Which clock simulated devices run on (real devices always run on real time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SimClock {
+    /// A virtual clock: nothing waits for real, the run is deterministic.
+    #[default]
+    Virtual,
+    /// Real time (e.g. to watch a dry run, or beside outside tools).
+    Real,
+}
+
+/// What the factory hands a session: the devices and the side channel to the rig.
+#[derive(Debug)]
+pub struct OpenedRig {
+    /// The arm and its instrument, each in its safety limits.
+    pub devices: RigDevices,
+    /// What the session tells the rig besides commands: nothing on the real rig.
+    pub hook: Box<dyn RigHook>,
+}
+
+/// The rig's devices for a session: emulators on `scenario`'s world (on `clock`), or what the
+/// rig file's `[devices]` says when there is no scenario (its `sim` entries on a nominal world).
+/// The scenario must be for this rig (the caller checks names and instruments).
+pub fn open_rig(
+    rig: &Rig,
+    scenario: Option<&Scenario>,
+    clock: SimClock,
+) -> Result<OpenedRig, DeviceError> {
+    match scenario {
+        Some(s) => {
+            let (mut setup, world) = SimSetup::from_scenario(s);
+            if clock == SimClock::Real {
+                setup.clock = RealClock::shared();
+            }
+            Ok(OpenedRig {
+                devices: open_devices(rig, Backend::Simulated(setup))?,
+                hook: Box::new(WorldHook(world)),
+            })
+        }
+        None => Ok(OpenedRig {
+            devices: open_devices(rig, Backend::RigFile)?,
+            hook: Box::new(NoHook),
+        }),
     }
 }
 

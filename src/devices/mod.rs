@@ -7,8 +7,10 @@
 //! | [`arm_movemaster`], [`table_canopen`], [`panel_penmount`] | drivers over any transport |
 //! | [`safety`] | joint limits, table travel, ascending z: refused before a byte is sent |
 //! | [`contact`] | the contact measurement and the approach-speed rule |
-//! | [`factory`] | the one switch point: rig file → the three boxed devices |
+//! | [`factory`] | the one switch point: rig file (and a scenario) → the boxed devices and the hook |
+//! | [`hook`] | the session's opaque side channel to a simulated world (nothing on the rig) |
 //! | [`clock`] | real time and a shared virtual clock |
+//! | [`profile`] | trapezoidal motion profiles (the drives', the emulator's, the estimate's) |
 //! | [`emulators`] | simulated back-ends speaking each protocol, with fault injection; a simulated point sensor |
 //!
 //! Units: joints in radians, table and panel in millimetres, times as [`std::time::Duration`]
@@ -19,12 +21,18 @@ pub mod clock;
 pub mod contact;
 pub mod emulators;
 pub mod factory;
+pub mod hook;
 pub mod panel_penmount;
+pub mod profile;
 pub mod safety;
 pub mod table_canopen;
 pub mod traits;
 
-pub use factory::{open_devices, Backend, InstrumentDevices, RigDevices, SimControls, SimSetup};
+pub use factory::{
+    open_devices, open_rig, Backend, InstrumentDevices, OpenedRig, RigDevices, SimClock,
+    SimControls, SimSetup,
+};
+pub use hook::{HookError, NoHook, RigHook};
 pub use traits::{
     Arm, ArmPose, ArmStatus, DeviceError, DeviceErrorKind, DeviceName, Panel, PanelStats,
     PointSensor, Table, Touch,

@@ -23,7 +23,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use crate::devices::emulators::Profile;
+use crate::devices::profile::Profile;
 use crate::division::{Bounds, DivisionSpace, Space};
 use crate::identification::random_poses;
 use crate::kinematics::{ErrorParams, Robot};

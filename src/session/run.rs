@@ -26,8 +26,7 @@ use std::time::{Duration, Instant};
 use nalgebra::{Isometry3, Vector3};
 
 use crate::devices::contact::{approach_speed, measure_contact, Contact};
-use crate::devices::emulators::world_physics::SharedWorld;
-use crate::devices::{DeviceError, RigDevices};
+use crate::devices::{DeviceError, OpenedRig, RigDevices, RigHook};
 use crate::identification::{register, Observation};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::recording::{
@@ -250,7 +249,7 @@ enum Outcome {
 struct Runner<'a> {
     rig: &'a Rig,
     dev: RigDevices,
-    world: Option<SharedWorld>,
+    hook: Box<dyn RigHook>,
     opts: SessionOptions,
     writer: RecordingWriter,
     csv: PathBuf,
@@ -276,17 +275,15 @@ fn dev(stage: impl Into<String>) -> impl FnOnce(DeviceError) -> SessionError {
     move |source| SessionError::Device { stage, source }
 }
 
-/// Runs (or resumes) a session over `points` on `devices`. `world` is the simulated world when
-/// the devices are emulated on a scenario (draws, time base and motion history go through it).
+/// Runs (or resumes) a session over `points` on the rig the factory opened.
 pub fn run_session(
     rig: &Rig,
-    devices: RigDevices,
-    world: Option<SharedWorld>,
+    opened: OpenedRig,
     points: &[PlannedPoint],
     opts: SessionOptions,
     progress: &Progress,
 ) -> Result<SessionReport, SessionError> {
-    let mut session = Session::open(rig, devices, world, opts)?;
+    let mut session = Session::open(rig, opened, opts)?;
     session.r.report.points = points.len();
     let start_point = session.next_point;
     for (i, p) in points.iter().enumerate().skip(start_point) {
@@ -321,11 +318,14 @@ impl<'a> Session<'a> {
     /// Opens (or, with `opts.resume`, resumes) a session on `devices`.
     pub fn open(
         rig: &'a Rig,
-        mut devices: RigDevices,
-        world: Option<SharedWorld>,
+        opened: OpenedRig,
         opts: SessionOptions,
     ) -> Result<Self, SessionError> {
         let started = Instant::now();
+        let OpenedRig {
+            mut devices,
+            hook,
+        } = opened;
         let dir = opts.dir.clone();
         std::fs::create_dir_all(&dir).map_err(|source| SessionError::Io {
             path: dir.clone(),
@@ -383,7 +383,7 @@ impl<'a> Session<'a> {
         .sync_each_row(opts.fsync);
         let mut r = Runner {
             rig,
-            world,
+            hook,
             writer,
             csv,
             seq: 1,
@@ -467,16 +467,12 @@ impl Runner<'_> {
         self.dev.clock.now().as_secs_f64() + self.offset_s
     }
 
-    fn set_time_base(&self) {
-        if let Some(w) = &self.world {
-            crate::devices::emulators::lock(w).set_time_offset(self.offset_s);
-        }
+    fn set_time_base(&mut self) {
+        self.hook.time_base(self.offset_s);
     }
 
-    fn set_draws(&self, seq: u64, attempt: u32) {
-        if let Some(w) = &self.world {
-            crate::devices::emulators::lock(w).set_draws(seq, attempt);
-        }
+    fn set_draws(&mut self, seq: u64, attempt: u32) {
+        self.hook.before_measurement(seq, attempt);
     }
 
     fn resume_from(&mut self, j: &Journal) -> Result<usize, SessionError> {
@@ -493,8 +489,13 @@ impl Runner<'_> {
             let at = self.table_back(t).map_err(dev("moving the table back"))?;
             self.table_at = Some(at);
         }
-        if let (Some(w), Some(h)) = (&self.world, &j.history) {
-            crate::devices::emulators::lock(w).restore(h.clone());
+        if let Some(state) = &j.rig_state {
+            self.hook
+                .restore(state)
+                .map_err(|e| JournalError::Corrupt {
+                    path: Journal::path(&self.opts.dir),
+                    reason: e.to_string(),
+                })?;
         }
         self.offset_s = j.clock_s - self.dev.clock.now().as_secs_f64();
         self.set_time_base();
@@ -538,10 +539,7 @@ impl Runner<'_> {
             next_point,
             next_seq: self.seq,
             clock_s: self.now_s(),
-            history: self
-                .world
-                .as_ref()
-                .map(|w| crate::devices::emulators::lock(w).snapshot()),
+            rig_state: self.hook.snapshot(),
             arm_q: self.arm_q.clone(),
             table_mm: self.table_at,
             registration: self.registration_info,
