@@ -90,10 +90,13 @@ fn compensation(c: &mut Criterion) {
 struct ScenarioMeasurer(rigcal::world::World, u64);
 
 impl rigcal::division::Measurer for ScenarioMeasurer {
-    fn measure(&mut self, q: &[f64]) -> Option<rigcal::identification::Observation> {
+    fn measure(
+        &mut self,
+        q: &[f64],
+    ) -> Result<Option<rigcal::identification::Observation>, rigcal::division::MeasureError> {
         self.1 += 1;
-        let p = self.0.measure_at(q, self.1 as f64, self.1, 0).position?;
-        Some(rigcal::identification::Observation { q: q.to_vec(), p })
+        let p = self.0.measure_at(q, self.1 as f64, self.1, 0).position;
+        Ok(p.map(|p| rigcal::identification::Observation { q: q.to_vec(), p }))
     }
 }
 

@@ -139,14 +139,7 @@ fn a_dry_run_session_end_to_end_is_accepted_by_identify() {
     let pts = points(&rig, 36, 2);
     let dir = tempfile::tempdir().unwrap();
     let d = sim_devices(&sc);
-    let report = run_session(
-        &rig,
-        d,
-        &pts,
-        options(dir.path()),
-        &Progress::Quiet,
-    )
-    .unwrap();
+    let report = run_session(&rig, d, &pts, options(dir.path()), &Progress::Quiet).unwrap();
     // Known limitation (see the session report): a rare off-centre phantom touch in the
     // emulated world is rejected by the contact check and the point skipped, with its reason.
     assert!(report.ok + 1 >= pts.len(), "{:?}", report.skipped);
@@ -798,14 +791,7 @@ fn a_dry_run_on_the_ideal_rig_reads_the_true_tip_at_every_commanded_pose() {
     let dir = tempfile::tempdir().unwrap();
     let d = sim_devices(&sc);
     assert!(!d.devices.has_table());
-    let report = run_session(
-        &rig,
-        d,
-        &pts,
-        options(dir.path()),
-        &Progress::Quiet,
-    )
-    .unwrap();
+    let report = run_session(&rig, d, &pts, options(dir.path()), &Progress::Quiet).unwrap();
     assert_eq!(report.ok, pts.len(), "{:?}", report.skipped);
     assert_eq!(report.registration_rms_mm, None);
     let rec = read(dir.path(), &rig);

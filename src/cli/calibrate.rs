@@ -187,7 +187,8 @@ fn refuse_other_options(a: &Args, dir: &std::path::Path) -> Result<()> {
 fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Result<ModelFile> {
     use crate::session::{recorded_requests, Session, SessionMeasurer, SessionOptions};
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
-    let opened = crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?;
+    let opened =
+        crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?;
     let mut opts = SessionOptions::new(dir);
     opts.seed = a.seed;
     opts.resume = a.resume;
@@ -235,13 +236,16 @@ fn calibrate_through_session(rig: &Rig, a: &Args, dir: &std::path::Path) -> Resu
         "planning",
         Some(dir.display().to_string()),
     );
-    if let Some(e) = measurer.into_error() {
-        return Err(e).context(format!(
-            "the session in {} stopped; its recording keeps every finished point",
-            dir.display()
-        ));
-    }
-    let model = model?;
+    let model = model.map_err(|e| {
+        if e.chain().any(|c| c.is::<crate::session::SessionError>()) {
+            e.context(format!(
+                "the session in {} stopped; its recording keeps every finished point",
+                dir.display()
+            ))
+        } else {
+            e
+        }
+    })?;
     let report = session.finish()?;
     println!(
         "session {}: {} points asked for{}, {} measured, {} skipped, rig time {:.0} s ({:.2} h){}",
@@ -488,11 +492,14 @@ pub(crate) struct WorldMeasurer {
 }
 
 impl crate::division::Measurer for WorldMeasurer {
-    fn measure(&mut self, q: &[f64]) -> Option<crate::identification::Observation> {
+    fn measure(
+        &mut self,
+        q: &[f64],
+    ) -> Result<Option<crate::identification::Observation>, crate::division::MeasureError> {
         self.seq += 1;
         self.t_s += self.step_s;
-        let p = self.world.measure_at(q, self.t_s, self.seq, 0).position?;
-        Some(crate::identification::Observation { q: q.to_vec(), p })
+        let p = self.world.measure_at(q, self.t_s, self.seq, 0).position;
+        Ok(p.map(|p| crate::identification::Observation { q: q.to_vec(), p }))
     }
 }
 

@@ -16,13 +16,13 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::rig::devices::ArmConfig;
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::protocols::movemaster::{
     quantise_joint_move, Command, Decimal, ErrorStatus, JointNumber, LineFramer, MovemasterError,
     Resolution, SpeedLevel, WhereReply,
 };
+use crate::rig::devices::ArmConfig;
 use crate::transports::{ByteTransport, TransportError};
 
 /// The Movemaster driver over any byte transport.

@@ -13,23 +13,23 @@ use std::sync::{Arc, Mutex};
 
 use crate::devices::arm_movemaster::MovemasterArm;
 use crate::devices::clock::{RealClock, SharedClock, VirtualClock};
-use crate::rig::devices::{DevicesConfig, TableConfig};
 use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
 use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
 use crate::devices::emulators::sensor::SimPointSensor;
 use crate::devices::emulators::table::{TableEmulator, TableFaultHandle};
 use crate::devices::emulators::world_physics::WorldHook;
-use crate::devices::hook::{NoHook, RigHook};
 use crate::devices::emulators::{
     NominalPhysics, PolledCan, PolledSerial, SharedPhysics, SharedTable, TableTruth,
 };
+use crate::devices::hook::{NoHook, RigHook};
 use crate::devices::panel_penmount::PenMountPanel;
 use crate::devices::safety::{LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
+use crate::rig::devices::{DevicesConfig, TableConfig};
 use crate::rig::{Instrument, Rig, TablePanel};
-use crate::world::Scenario;
 use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
+use crate::world::Scenario;
 
 /// The simulated world the emulators use.
 #[derive(Clone)]

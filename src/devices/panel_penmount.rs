@@ -12,9 +12,9 @@
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::rig::devices::PanelConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Panel, PanelStats, Touch};
 use crate::protocols::penmount::PenMountDecoder;
+use crate::rig::devices::PanelConfig;
 use crate::transports::{ByteTransport, TransportError};
 
 /// The PenMount driver over any byte transport.

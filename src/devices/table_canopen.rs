@@ -23,12 +23,12 @@
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::rig::devices::TableConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Table};
 use crate::protocols::canopen::{
     next_controlword_towards_enabled, od, CanOpenMessage, Controlword, DriveState, Nmt, NmtCommand,
     NodeId, SdoData, SdoRequest, SdoResponse, Statusword,
 };
+use crate::rig::devices::TableConfig;
 use crate::transports::{CanBus, TransportError};
 
 const AXES: [char; 3] = ['x', 'y', 'z'];

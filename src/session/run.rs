@@ -322,10 +322,7 @@ impl<'a> Session<'a> {
         opts: SessionOptions,
     ) -> Result<Self, SessionError> {
         let started = Instant::now();
-        let OpenedRig {
-            mut devices,
-            hook,
-        } = opened;
+        let OpenedRig { mut devices, hook } = opened;
         let dir = opts.dir.clone();
         std::fs::create_dir_all(&dir).map_err(|source| SessionError::Io {
             path: dir.clone(),

@@ -19,13 +19,13 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::rig::devices::TableConfig;
 use crate::devices::emulators::{lock, FrameEmulator, Profile, SharedTable};
 use crate::protocols::can::CanFrame;
 use crate::protocols::canopen::{
     od, CanOpenMessage, Controlword, DriveState, EmcyErrorCode, Emergency, Heartbeat, NmtCommand,
     NmtState, NodeId, SdoAbortCode, SdoData, SdoRequest, SdoResponse, Statusword,
 };
+use crate::rig::devices::TableConfig;
 
 /// A drive fault to inject.
 #[derive(Debug, Clone, Copy, PartialEq)]
