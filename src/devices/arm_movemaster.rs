@@ -46,7 +46,7 @@ pub struct MovemasterArm<T: ByteTransport> {
 }
 
 /// A move whose `ER` reply (its end) has not been read yet.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct PendingMove {
     /// The move command as sent.
     command: String,
@@ -158,15 +158,35 @@ impl<T: ByteTransport> MovemasterArm<T> {
     /// Reads one reply line, waiting at most `timeout` (clock time).
     fn read_line(&mut self, request: &str, timeout: Duration) -> Result<Vec<u8>, DeviceError> {
         let start = self.clock.now();
-        let deadline = start + timeout;
+        match self.next_line(timeout)? {
+            Some(Ok(line)) => Ok(line),
+            Some(Err(e)) => Err(DeviceError::Protocol {
+                device: DeviceName::Arm,
+                request: request.into(),
+                detail: e.to_string(),
+            }),
+            None => Err(DeviceError::Timeout {
+                device: DeviceName::Arm,
+                waiting_for: format!("the reply to `{request}`"),
+                waited: self.clock.now().saturating_sub(start),
+                target: request.into(),
+                current: self.current(),
+            }),
+        }
+    }
+
+    /// The next reply line within `timeout` (clock time), `None` if none came (cheap: a slice
+    /// of a longer wait ends so); a garbled line as the framer's error.
+    #[allow(clippy::type_complexity)]
+    fn next_line(
+        &mut self,
+        timeout: Duration,
+    ) -> Result<Option<Result<Vec<u8>, MovemasterError>>, DeviceError> {
+        let deadline = self.clock.now() + timeout;
         let mut buf = [0u8; 64];
         loop {
             if let Some(line) = self.lines.pop_front() {
-                return line.map_err(|e| DeviceError::Protocol {
-                    device: DeviceName::Arm,
-                    request: request.into(),
-                    detail: e.to_string(),
-                });
+                return Ok(Some(line));
             }
             let remaining = deadline.saturating_sub(self.clock.now());
             match self.io.read(&mut buf, remaining) {
@@ -174,25 +194,11 @@ impl<T: ByteTransport> MovemasterArm<T> {
                     let lines = self.framer.push(buf.get(..n).unwrap_or(&[]));
                     self.lines.extend(lines);
                 }
-                Err(TransportError::Timeout { .. }) => {
-                    return Err(DeviceError::Timeout {
-                        device: DeviceName::Arm,
-                        waiting_for: format!("the reply to `{request}`"),
-                        waited: self.clock.now().saturating_sub(start),
-                        target: request.into(),
-                        current: self.current(),
-                    })
-                }
+                Err(TransportError::Timeout { .. }) => return Ok(None),
                 Err(e) => return Err(self.transport(e)),
             }
             if self.lines.is_empty() && self.clock.now() >= deadline {
-                return Err(DeviceError::Timeout {
-                    device: DeviceName::Arm,
-                    waiting_for: format!("the reply to `{request}`"),
-                    waited: self.clock.now().saturating_sub(start),
-                    target: request.into(),
-                    current: self.current(),
-                });
+                return Ok(None);
             }
         }
     }
@@ -222,30 +228,37 @@ impl<T: ByteTransport> MovemasterArm<T> {
     /// A pending move's end: reads its `ER` reply, waiting at most `slice`; `Ok(false)` while
     /// the reply has not come and the move's timeout has not run out.
     fn finish_pending(&mut self, slice: Duration) -> Result<bool, DeviceError> {
-        let Some(p) = self.pending.clone() else {
+        let Some(deadline) = self.pending.as_ref().map(|p| p.deadline) else {
+            return Ok(true);
+        };
+        let left = deadline.saturating_sub(self.clock.now());
+        let line = self.next_line(slice.min(left));
+        if matches!(line, Ok(None)) && self.clock.now() < deadline {
+            return Ok(false);
+        }
+        let Some(p) = self.pending.take() else {
             return Ok(true);
         };
         let request = format!("ER after {}", p.command);
-        let left = p.deadline.saturating_sub(self.clock.now());
-        let line = match self.read_line(&request, slice.min(left)) {
-            Ok(line) => line,
-            Err(DeviceError::Timeout { .. }) if self.clock.now() < p.deadline => return Ok(false),
-            Err(DeviceError::Timeout { .. }) => {
-                self.pending = None;
+        let line = match line? {
+            Some(Ok(line)) => line,
+            Some(Err(e)) => {
+                return Err(DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request,
+                    detail: e.to_string(),
+                })
+            }
+            None => {
                 return Err(DeviceError::Timeout {
                     device: DeviceName::Arm,
                     waiting_for: format!("the reply to `{request}`"),
                     waited: self.clock.now().saturating_sub(p.started),
                     target: request,
                     current: self.current(),
-                });
-            }
-            Err(e) => {
-                self.pending = None;
-                return Err(e);
+                })
             }
         };
-        self.pending = None;
         let status = decode_status(&p.command, &line)?;
         self.outcome(p.command, status)?;
         self.commanded_counts = Some(p.counts);

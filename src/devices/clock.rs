@@ -29,6 +29,10 @@ pub trait Clock: Send + Sync + std::fmt::Debug {
     fn wake_at(&self, _t: Duration, _waker: &Waker) -> bool {
         false
     }
+    /// The earliest moment a registered waker waits for (virtual clock only).
+    fn next_wake(&self) -> Option<Duration> {
+        None
+    }
 }
 
 /// A clock shared by drivers and emulators.
@@ -101,12 +105,17 @@ impl VirtualState {
             Some(e) if e <= t => {}
             _ => return Vec::new(),
         }
-        let (due, waiting): (Vec<_>, Vec<_>) = std::mem::take(&mut self.timers)
-            .into_iter()
-            .partition(|(at, _)| *at <= t);
-        self.earliest = waiting.iter().map(|(at, _)| *at).min();
-        self.timers = waiting;
-        due.into_iter().map(|(_, w)| w).collect()
+        let mut due = Vec::new();
+        self.timers.retain(|(at, w)| {
+            if *at <= t {
+                due.push(w.clone());
+                false
+            } else {
+                true
+            }
+        });
+        self.earliest = self.timers.iter().map(|(at, _)| *at).min();
+        due
     }
 }
 
@@ -160,6 +169,9 @@ impl Clock for VirtualClock {
     }
     fn is_virtual(&self) -> bool {
         true
+    }
+    fn next_wake(&self) -> Option<Duration> {
+        self.state().earliest
     }
     fn wake_at(&self, t: Duration, waker: &Waker) -> bool {
         let mut s = self.state();

@@ -170,10 +170,9 @@ async fn first_touch(
 ) -> Result<Touch, DeviceError> {
     loop {
         let slice = pace.slice_until(deadline);
-        match panel.run(slice, move |p| p.wait_touch(slice)).await {
-            Ok(t) => return Ok(t),
-            Err(DeviceError::Timeout { .. }) => pace.yield_now().await,
-            Err(e) => return Err(e),
+        match panel.run(slice, move |p| p.poll_touch(slice)).await? {
+            Some(t) => return Ok(t),
+            None => pace.yield_now().await,
         }
     }
 }

@@ -10,7 +10,8 @@
 //!   reads, which advance the shared clock to the next event; tokio's clock knows nothing of
 //!   them. So every device call runs inline on a current-thread runtime (without timers: a
 //!   real-time wait there would be a bug, and panics), each slice advances the virtual clock by
-//!   at most [`VIRTUAL_SLICE`], and `select!` with `biased;` polls its branches in a fixed order:
+//!   at most [`VIRTUAL_SLICE`] and never past the next moment another wait is due, and
+//!   `select!` with `biased;` polls its branches in a fixed order:
 //!   the same run, slice for slice, every time — which is what kill-and-resume and the
 //!   byte-identical recordings rely on. A wait that must not move the clock (a timeout branch,
 //!   the supervision task's period) is woken by the virtual clock when a device wait passes it.
@@ -25,9 +26,10 @@ use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
 
-/// Longest slice of a device wait on the virtual clock: how far one wait may carry the clock
-/// before the others of the same choreography get their turn.
-pub const VIRTUAL_SLICE: Duration = Duration::from_millis(10);
+/// Longest slice of a device wait on the virtual clock. A slice also ends where the next
+/// timed wait is due (a supervision check, a timeout, another device's next look), so no wait
+/// carries the clock past a moment another one is waiting for.
+pub const VIRTUAL_SLICE: Duration = Duration::from_millis(100);
 /// Longest slice of a device wait on real time: how long a device thread is busy with one
 /// wait before it takes the next request (a halt, a supervision check).
 pub const REAL_SLICE: Duration = Duration::from_millis(20);
@@ -70,10 +72,20 @@ impl Pace {
         self.slice
     }
 
-    /// The next slice of a wait that ends at `deadline` (clock time): one slice, never past the
-    /// deadline (zero once it has passed).
+    /// The next slice of a wait: at most [`Pace::slice`], and on a virtual clock not past the
+    /// next moment a timed wait is due.
+    pub fn next_slice(&self) -> Duration {
+        let now = self.now();
+        match self.clock.next_wake() {
+            Some(t) if t > now => self.slice.min(t - now),
+            _ => self.slice,
+        }
+    }
+
+    /// The next slice of a wait that ends at `deadline` (clock time): [`Pace::next_slice`],
+    /// never past the deadline (zero once it has passed).
     pub fn slice_until(&self, deadline: Duration) -> Duration {
-        deadline.saturating_sub(self.now()).min(self.slice)
+        deadline.saturating_sub(self.now()).min(self.next_slice())
     }
 
     /// Lets the other waits of the same task, and other tasks, run.

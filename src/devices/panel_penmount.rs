@@ -55,6 +55,41 @@ impl<T: ByteTransport> PenMountPanel<T> {
     }
 }
 
+impl<T: ByteTransport> PenMountPanel<T> {
+    /// The first touch packet within `timeout` (clock time), `None` if none came.
+    fn touch_within(&mut self, timeout: Duration) -> Result<Option<Touch>, DeviceError> {
+        let deadline = self.clock.now() + timeout;
+        let mut buf = [0u8; 64];
+        loop {
+            let remaining = deadline.saturating_sub(self.clock.now());
+            match self.io.read(&mut buf, remaining) {
+                Ok(n) => {
+                    for p in self.decoder.push(buf.get(..n).unwrap_or(&[])) {
+                        if p.touch {
+                            let (u_mm, v_mm) = self.to_mm(p.x, p.y);
+                            return Ok(Some(Touch {
+                                counts: [p.x, p.y],
+                                u_mm,
+                                v_mm,
+                            }));
+                        }
+                    }
+                }
+                Err(TransportError::Timeout { .. }) => return Ok(None),
+                Err(source) => {
+                    return Err(DeviceError::Transport {
+                        device: DeviceName::Panel,
+                        source,
+                    })
+                }
+            }
+            if self.clock.now() >= deadline {
+                return Ok(None);
+            }
+        }
+    }
+}
+
 /// Raw counts to (u, v) mm from the panel centre, with the rig file's flips and shifts.
 pub fn counts_to_mm(
     cx: u16,
@@ -93,49 +128,20 @@ impl<T: ByteTransport> Panel for PenMountPanel<T> {
 
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
         let start = self.clock.now();
-        let deadline = start + timeout;
-        let mut buf = [0u8; 64];
-        loop {
-            let remaining = deadline.saturating_sub(self.clock.now());
-            match self.io.read(&mut buf, remaining) {
-                Ok(n) => {
-                    for p in self.decoder.push(buf.get(..n).unwrap_or(&[])) {
-                        if p.touch {
-                            let (u_mm, v_mm) = self.to_mm(p.x, p.y);
-                            return Ok(Touch {
-                                counts: [p.x, p.y],
-                                u_mm,
-                                v_mm,
-                            });
-                        }
-                    }
-                }
-                Err(TransportError::Timeout { .. }) => {
-                    return Err(DeviceError::Timeout {
-                        device: DeviceName::Panel,
-                        waiting_for: "a touch packet".into(),
-                        waited: self.clock.now().saturating_sub(start),
-                        target: "touch".into(),
-                        current: format!("{:?}", self.stats()),
-                    })
-                }
-                Err(source) => {
-                    return Err(DeviceError::Transport {
-                        device: DeviceName::Panel,
-                        source,
-                    })
-                }
-            }
-            if self.clock.now() >= deadline {
-                return Err(DeviceError::Timeout {
-                    device: DeviceName::Panel,
-                    waiting_for: "a touch packet".into(),
-                    waited: self.clock.now().saturating_sub(start),
-                    target: "touch".into(),
-                    current: format!("{:?}", self.stats()),
-                });
-            }
+        match self.touch_within(timeout)? {
+            Some(t) => Ok(t),
+            None => Err(DeviceError::Timeout {
+                device: DeviceName::Panel,
+                waiting_for: "a touch packet".into(),
+                waited: self.clock.now().saturating_sub(start),
+                target: "touch".into(),
+                current: format!("{:?}", self.stats()),
+            }),
         }
+    }
+
+    fn poll_touch(&mut self, slice: Duration) -> Result<Option<Touch>, DeviceError> {
+        self.touch_within(slice)
     }
 
     fn stats(&self) -> PanelStats {

@@ -405,10 +405,12 @@ impl<B: CanBus> CanOpenTable<B> {
             if all {
                 return self.read_positions().map(Some);
             }
+            // The poll interval before the check, so that the slices of a longer wait keep
+            // the same cadence as one wait.
+            self.clock.sleep(self.poll());
             if self.clock.now().saturating_sub(start) > within {
                 return Ok(None);
             }
-            self.clock.sleep(self.poll());
         }
     }
 

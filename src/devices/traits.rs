@@ -9,7 +9,7 @@
 //! and nothing in them tells a simulated device from a real one.
 //!
 //! Long waits also come in slices ([`Arm::start_move`] + [`Arm::wait_moved`],
-//! [`Table::poll_reached`], [`Panel::wait_touch`] with a short timeout), so that the session's
+//! [`Table::poll_reached`], [`Panel::poll_touch`]), so that the session's
 //! asynchronous choreography can wait on several devices at once and stop waiting when a fault
 //! comes first. The defaults wait in one piece, so a device (or a test wrapper) that only
 //! implements the plain calls still works, unsliced.
@@ -416,6 +416,15 @@ pub trait Panel: Send {
     fn clear(&mut self) -> Result<(), DeviceError>;
     /// Waits for the first valid packet with the touch flag set.
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError>;
+    /// Waits at most `slice` for a touch (a slice of a longer wait): `None` if none came.
+    /// Default: [`Panel::wait_touch`] with its timeout as `None`.
+    fn poll_touch(&mut self, slice: Duration) -> Result<Option<Touch>, DeviceError> {
+        match self.wait_touch(slice) {
+            Ok(t) => Ok(Some(t)),
+            Err(DeviceError::Timeout { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
     /// Stream counters (bad packets are counted and dropped, never measured).
     fn stats(&self) -> PanelStats;
     /// The panel's reporting latency (from the rig file), for the approach-speed rule.
@@ -498,6 +507,9 @@ impl<P: Panel + ?Sized> Panel for Box<P> {
     }
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
         (**self).wait_touch(timeout)
+    }
+    fn poll_touch(&mut self, slice: Duration) -> Result<Option<Touch>, DeviceError> {
+        (**self).poll_touch(slice)
     }
     fn stats(&self) -> PanelStats {
         (**self).stats()

@@ -22,6 +22,10 @@ use crate::devices::{
 pub(crate) const IO: Duration = Duration::from_secs(2);
 /// Timeout of an arm or table move.
 pub(crate) const MOVE: Duration = Duration::from_secs(120);
+/// While the arm moves beside it, the table is looked at this often (its drives' faults and
+/// heartbeats are supervised besides); polled closely once the arm has arrived, when its end
+/// is what the session waits for.
+const BESIDE_ARM: Duration = Duration::from_millis(100);
 
 /// The instrument's devices.
 enum Instrument {
@@ -157,7 +161,18 @@ impl Motion {
     /// arm no longer waited for.
     pub async fn arm_and_table(&self, q: &[f64]) -> Result<(Vec<f64>, [f64; 3]), DeviceError> {
         let table = self.table()?;
-        let both = async { tokio::try_join!(self.arm_motion(q.to_vec()), self.table_wait(table)) };
+        let arrived = tokio::sync::Notify::new();
+        let arm = async {
+            let done = self.arm_motion(q.to_vec()).await?;
+            arrived.notify_one();
+            Ok(done)
+        };
+        // Polled in a fixed order, the table's look first: on the virtual clock it then looks
+        // exactly when due, whatever else woke the task.
+        let both = async {
+            tokio::try_join!(biased; self.table_beside_arm(table, &arrived), arm)
+                .map(|(at, done)| (done, at))
+        };
         let r = self.guarded(both).await;
         if r.is_err() {
             self.halt_table().await;
@@ -192,7 +207,7 @@ impl Motion {
     async fn arm_motion(&self, q: Vec<f64>) -> Result<Vec<f64>, DeviceError> {
         let done = self.arm.run(MOVE, move |a| a.start_move(&q, MOVE)).await?;
         loop {
-            let slice = self.pace.slice();
+            let slice = self.pace.next_slice();
             // The last slice also checks the pose (WH), within the move's own timeout.
             if self.arm.run(MOVE, move |a| a.wait_moved(slice)).await? {
                 return Ok(done);
@@ -201,12 +216,46 @@ impl Motion {
         }
     }
 
+    /// The table's wait for its target while the arm moves (unguarded): a look every
+    /// [`BESIDE_ARM`] from the start, until the arm has arrived (`arrived`), then the close
+    /// wait. The looks keep to that schedule whatever else cuts the arm's slices (on the
+    /// virtual clock, the supervision task's checks), so a resumed session looks when the
+    /// uninterrupted one did.
+    async fn table_beside_arm(
+        &self,
+        table: &DeviceActor<dyn Table>,
+        arrived: &tokio::sync::Notify,
+    ) -> Result<[f64; 3], DeviceError> {
+        let start = self.pace.now();
+        let deadline = start + MOVE;
+        let mut next = start + BESIDE_ARM;
+        loop {
+            tokio::select! {
+                biased;
+                () = arrived.notified() => return self.table_wait(table).await,
+                () = self.pace.until(next) => {}
+            }
+            let left = deadline.saturating_sub(self.pace.now());
+            // One look at the drives: a status round, no waiting.
+            if let Some(p) = table
+                .run(left + IO, move |t| t.poll_reached(Duration::ZERO, left))
+                .await?
+            {
+                return Ok(p);
+            }
+            let now = self.pace.now();
+            while next <= now {
+                next += BESIDE_ARM;
+            }
+        }
+    }
+
     /// The table's wait for its target in slices (unguarded).
     async fn table_wait(&self, table: &DeviceActor<dyn Table>) -> Result<[f64; 3], DeviceError> {
         let deadline = self.pace.now() + MOVE;
         loop {
             let left = deadline.saturating_sub(self.pace.now());
-            let slice = left.min(self.pace.slice());
+            let slice = self.pace.slice_until(deadline);
             if let Some(p) = table
                 .run(left + IO, move |t| t.poll_reached(slice, left))
                 .await?
