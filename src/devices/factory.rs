@@ -299,7 +299,8 @@ pub struct OpenedRig {
 }
 
 /// The rig's devices for a session: emulators on `scenario`'s world (on `clock`), or what the
-/// rig file's `[devices]` says when there is no scenario (its `sim` entries on a nominal world).
+/// rig file's `[devices]` says when there is no scenario (its `sim` entries on a nominal world,
+/// on `clock` when every device is simulated, on real time beside real devices).
 /// The scenario must be for this rig (the caller checks names and instruments).
 pub fn open_rig(
     rig: &Rig,
@@ -317,10 +318,28 @@ pub fn open_rig(
                 hook: Box::new(WorldHook(world)),
             })
         }
-        None => Ok(OpenedRig {
-            devices: open_devices(rig, Backend::RigFile)?,
-            hook: Box::new(NoHook),
-        }),
+        None => {
+            let cfg = rig.devices.clone().unwrap_or_default();
+            let all_sim = match &rig.instrument {
+                Instrument::TablePanel(_) => {
+                    is_sim(&cfg.arm.transport)
+                        && is_sim(&cfg.table.transport)
+                        && is_sim(&cfg.panel.transport)
+                }
+                Instrument::Ideal | Instrument::Tracker => is_sim(&cfg.arm.transport),
+            };
+            let backend = if all_sim && clock == SimClock::Real {
+                let mut setup = SimSetup::nominal(rig);
+                setup.clock = RealClock::shared();
+                Backend::Simulated(setup)
+            } else {
+                Backend::RigFile
+            };
+            Ok(OpenedRig {
+                devices: open_devices(rig, backend)?,
+                hook: Box::new(NoHook),
+            })
+        }
     }
 }
 

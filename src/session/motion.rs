@@ -266,3 +266,184 @@ impl Motion {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::devices::emulators::table::InjectedFault;
+    use crate::devices::{open_rig, SimClock, SimControls};
+    use crate::rig::Rig;
+
+    fn rig() -> Rig {
+        Rig::load(std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/rigs/rv-m2.toml"
+        )))
+        .expect("the shipped rig file loads")
+    }
+
+    /// The rig's emulators (all `sim` in the rig file) with the arm homed, the table enabled
+    /// and its drives supervised; the emulators' fault handles; a runtime for the clock.
+    fn bring_up(clock: SimClock) -> (Motion, SimControls, tokio::runtime::Runtime) {
+        let rig = rig();
+        let opened = open_rig(&rig, None, clock).expect("the rig opens");
+        assert_eq!(
+            opened.devices.clock.is_virtual(),
+            clock == SimClock::Virtual
+        );
+        let controls = opened.devices.sim.clone().expect("emulated devices");
+        let mut motion = Motion::new(opened.devices).expect("the devices start");
+        let rt = motion.pace.runtime().expect("runtime");
+        rt.block_on(async {
+            motion.arm.run(MOVE, |a| a.home(MOVE)).await.expect("home");
+            let table = motion.table().expect("table rig");
+            table.run(IO, |t| t.enable(IO)).await.expect("enable");
+            motion.supervise(Duration::from_millis(100));
+        });
+        (motion, controls, rt)
+    }
+
+    fn deg(v: [f64; 5]) -> Vec<f64> {
+        v.iter().map(|d| d.to_radians()).collect()
+    }
+
+    /// From the nest (0, 90, -90, 0, 0) the arm needs seconds for this move.
+    const FAR: [f64; 5] = [80.0, 60.0, -60.0, 0.0, 0.0];
+
+    #[test]
+    fn a_table_fault_during_a_simultaneous_move_cancels_the_arms_wait() {
+        let (motion, controls, rt) = bring_up(SimClock::Virtual);
+        let table_faults = controls.table.clone().expect("table emulator");
+        let arm_faults = controls.arm.clone().expect("arm emulator");
+        rt.block_on(async {
+            // The arm's end is never reported (a lost reply): its wait alone would last its
+            // whole timeout. The table's drive x faults 50 ms into its move.
+            arm_faults.lock().expect("faults").drop_replies = 1;
+            table_faults.lock().expect("faults").fault_on_next_move = Some(InjectedFault {
+                axis: 0,
+                after: Duration::from_millis(50),
+                emcy_code: 0x2310,
+            });
+            motion.table_speed(100.0).await.expect("speed");
+            motion
+                .start_table([600.0, 280.0, 0.0])
+                .await
+                .expect("start");
+            let t0 = motion.pace.now();
+            let e = motion.arm_and_table(&deg(FAR)).await.unwrap_err();
+            let took = motion.pace.now() - t0;
+            assert!(
+                matches!(e, DeviceError::DriveFault { axis: 'x', .. }),
+                "{e}"
+            );
+            assert!(
+                took < Duration::from_millis(500),
+                "the fault ended the wait after {took:?} (the arm's timeout is {MOVE:?})"
+            );
+            // Halted where the fault stopped it, far from the target.
+            let x = controls.table_truth.lock().expect("truth").axes[0];
+            assert_eq!(x.from, x.to, "the x axis stands still");
+            assert!(x.to < 420.0, "x at {} mm", x.to);
+        });
+    }
+
+    #[test]
+    fn after_a_cancelled_wait_the_arm_finishes_its_move_before_the_next() {
+        let (motion, controls, rt) = bring_up(SimClock::Virtual);
+        let table_faults = controls.table.clone().expect("table emulator");
+        rt.block_on(async {
+            table_faults.lock().expect("faults").fault_on_next_move = Some(InjectedFault {
+                axis: 1,
+                after: Duration::from_millis(50),
+                emcy_code: 0x8611,
+            });
+            motion
+                .start_table([400.0, 380.0, 0.0])
+                .await
+                .expect("start");
+            let t0 = motion.pace.now();
+            assert!(motion.arm_and_table(&deg(FAR)).await.is_err());
+            assert!(motion.pace.now() - t0 < Duration::from_millis(500));
+            let table = motion.table().expect("table");
+            table
+                .run(IO * 5, |t| t.fault_reset(IO * 5))
+                .await
+                .expect("reset");
+            motion.alarm.clear();
+            // The next move goes out only after the abandoned one has ended (the controller
+            // executes in order), and starts from where that one went.
+            let q = motion.arm_to(&deg([80.0, 61.0, -60.0, 0.0, 0.0])).await;
+            let q = q.expect("the arm moves on");
+            assert!((q[1].to_degrees() - 61.0).abs() < 0.06, "{q:?}");
+            assert!(
+                motion.pace.now() - t0 > Duration::from_secs(1),
+                "it waited for the first"
+            );
+        });
+    }
+
+    #[test]
+    fn a_lost_heartbeat_aborts_the_approach_and_halts_the_table() {
+        let (motion, controls, rt) = bring_up(SimClock::Virtual);
+        let table_faults = controls.table.clone().expect("table emulator");
+        rt.block_on(async {
+            motion.table_speed(100.0).await.expect("speed");
+            motion
+                .start_table([100.0, 100.0, 0.0])
+                .await
+                .expect("start");
+            motion.table_reached().await.expect("reached");
+            // Away from the pin: no touch can end this approach, only its 5 s timeout.
+            table_faults.lock().expect("faults").silent_heartbeat[2] = true;
+            let t0 = motion.pace.now();
+            let a = Approach {
+                xy_mm: [100.0, 100.0],
+                z_from_mm: 0.0,
+                z_to_mm: 20.0,
+                speed_mm_s: 5.0,
+                timeout: Duration::from_secs(5),
+            };
+            let e = motion.contact(&a).await.unwrap_err();
+            let took = motion.pace.now() - t0;
+            assert!(
+                matches!(e, DeviceError::HeartbeatLost { axis: 'z', .. }),
+                "{e}"
+            );
+            // Three periods of silence since the last heartbeat seen (the limit), then at most
+            // a supervision period — not the approach's timeout.
+            assert!(took < Duration::from_millis(600), "{took:?}");
+            let z = controls.table_truth.lock().expect("truth").axes[2];
+            assert_eq!(z.from, z.to, "z stands still");
+            assert!(
+                z.to < 5.0,
+                "halted at z {} mm, far below the approach's end",
+                z.to
+            );
+        });
+    }
+
+    #[test]
+    fn on_real_time_the_devices_answer_from_their_threads() {
+        let (motion, _controls, rt) = bring_up(SimClock::Real);
+        rt.block_on(async {
+            let started = std::time::Instant::now();
+            motion.table_speed(100.0).await.expect("speed");
+            motion
+                .start_table([401.0, 280.0, 0.0])
+                .await
+                .expect("start");
+            let (q, at) = motion
+                .arm_and_table(&deg([0.5, 90.0, -90.0, 0.0, 0.0]))
+                .await
+                .expect("both moves");
+            assert!((q[0].to_degrees() - 0.5).abs() < 0.06, "{q:?}");
+            assert!((at[0] - 401.0).abs() < 0.01, "{at:?}");
+            // Real time passed: the arm's reply alone takes the emulator's 5 ms.
+            let took = started.elapsed();
+            assert!(
+                took > Duration::from_millis(10) && took < Duration::from_secs(5),
+                "{took:?}"
+            );
+        });
+    }
+}
