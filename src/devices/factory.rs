@@ -266,8 +266,14 @@ fn open_can(t: &TableConfig) -> Result<Box<dyn CanBus>, DeviceError> {
     let ifname = tr.strip_prefix("socketcan:").unwrap_or(tr);
     #[cfg(target_os = "linux")]
     {
+        // socketcan's tokio socket on an I/O thread; the driver (on its own device thread)
+        // talks to it through the blocking bridge.
+        let name = ifname.to_string();
         Ok(Box::new(
-            crate::transports::SocketCanBus::open(ifname).map_err(err)?,
+            crate::transports::BridgedCanBus::spawn(ifname, move || {
+                crate::transports::AsyncSocketCan::open(&name)
+            })
+            .map_err(err)?,
         ))
     }
     #[cfg(not(target_os = "linux"))]
