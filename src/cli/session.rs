@@ -119,7 +119,7 @@ pub fn run(a: Args) -> Result<()> {
         &rig,
         &[registration, points.clone()].concat(),
         &RigSpeeds::of(&rig),
-        &ContactSettings::default(),
+        &ContactSettings::of(&rig),
     );
     println!("{}", super::plan::describe(&est));
 
