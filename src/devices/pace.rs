@@ -187,8 +187,8 @@ mod tests {
         assert_eq!(order, "timeout");
         assert_eq!(
             clock.now(),
-            Duration::from_millis(30),
-            "three slices of 10 ms"
+            Duration::from_millis(25),
+            "the slice ends where the timeout is due"
         );
     }
 }
