@@ -2,7 +2,7 @@
 //! drivers (on the rig or on emulators of a scenario's world), journal every point so a killed
 //! session resumes without losing or repeating one.
 //!
-//! - [`plan`]: points per region, checked for measurability, ordered to cut travel, with a drift
+//! - [`plan`](mod@plan): points per region, checked for measurability, ordered to cut travel, with a drift
 //!   reference and alternating approach directions; a rig-time estimate.
 //! - [`run`]: registration, then the points; rows appended and flushed before the next motion,
 //!   the choreography on tokio (arm and table together, waits raced against the drives'

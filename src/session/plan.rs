@@ -170,7 +170,7 @@ const REGISTRATION_DRAWS_PER_POSE: usize = 500;
 /// uniform random joint values, seeded from the session seed, kept when the rig can measure
 /// them. The session takes candidates until it has its registration observations; the rig-time
 /// estimate takes as many as the session asks for. Ends early when no measurable pose turns up
-/// within [`REGISTRATION_DRAWS_PER_POSE`] draws.
+/// within `REGISTRATION_DRAWS_PER_POSE` draws.
 pub fn registration_candidates(
     rig: &Rig,
     session_seed: u64,

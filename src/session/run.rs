@@ -6,13 +6,13 @@
 //! the public calls stay synchronous (a division's [`Measurer`](crate::division::Measurer)
 //! asks for one point at a time). The modules it is made of:
 //!
-//! - [`core`](super::core): the recording, `seq`, the time base, the journal, the registration;
-//! - [`motion`](super::motion): the devices as futures — arm and table together, waits raced
+//! - `core`: the recording, `seq`, the time base, the journal, the registration;
+//! - `motion`: the devices as futures — arm and table together, waits raced
 //!   against the drives' supervision alarm, a fault cancelling the motion in progress;
-//! - [`contact`](super::contact) and [`sensor`](super::sensor): the procedures per instrument,
+//! - `contact` and `sensor`: the procedures per instrument,
 //!   each with its thresholds from the rig file;
-//! - [`recovery`](super::recovery): retry, give the point up, or stop;
-//! - [`registration`](super::registration): the table-to-world registration step.
+//! - `recovery`: retry, give the point up, or stop;
+//! - `registration`: the table-to-world registration step.
 //!
 //! A point the rig cannot measure, or one still failing after the last attempt, becomes a
 //! `skipped: REASON` row. Rows (conventions §6): `via` for the pre-approach and registration

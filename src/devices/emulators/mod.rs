@@ -1,5 +1,5 @@
 //! Simulated back-ends that speak each device's protocol byte for byte (or frame for frame),
-//! take their physics from a [`RigPhysics`], and keep time on a [`Clock`].
+//! take their physics from a [`RigPhysics`], and keep time on a [`Clock`](crate::devices::clock::Clock).
 //!
 //! Each emulator is a state machine fed with input at a time and asked for the output due at a
 //! time ([`ByteEmulator`], [`FrameEmulator`]). Two ways to run one:

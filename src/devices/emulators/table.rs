@@ -13,7 +13,7 @@
 //! falls, and target reached (bit 10) when the profile ends. Halt (bit 8) stops the axis where
 //! it is. A fault stops the axis, raises bit 3 (and bit 13 for a following error) and sends an
 //! EMCY; a rising edge of bit 7 clears it (to *switch on disabled*) and sends an EMCY "no error".
-//! Positions in counts on the wire; the true motion in mm goes to the shared [`TableTruth`].
+//! Positions in counts on the wire; the true motion in mm goes to the shared [`TableTruth`](super::TableTruth).
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
