@@ -64,8 +64,10 @@ pub struct CalibrationOptions {
     /// Measurements per region.
     #[arg(long, default_value_t = 20)]
     pub per_region: usize,
-    /// Test points per region (planning mode).
-    #[arg(long, default_value_t = 20)]
+    /// Test points per region (planning mode): the 27 points of a 3 × 3 × 3 grid over the
+    /// region (corners, edge midpoints, face centres, centre), then a Halton set; fewer take
+    /// the corners first.
+    #[arg(long, default_value_t = 27)]
     pub test_points: usize,
     /// Random poses the identifiable basis (the CEPs) is chosen on.
     #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
@@ -99,7 +101,7 @@ impl Default for CalibrationOptions {
             accuracy_mm: 0.1,
             max_regions: None,
             per_region: 20,
-            test_points: 20,
+            test_points: 27,
             design_poses: PAPER_DESIGN_POSES,
             learner: LearnerKind::Fcmac,
             learner_settings: LearnerSettings::default(),

@@ -273,11 +273,8 @@ impl DivisionFigures {
 
     fn learner_line(&self) -> String {
         let t = self.learner_time.as_secs_f64();
-        let untrained = learners::TrainReport {
-            epochs: 0,
-            max_error: f64::NAN,
-            rms_error: f64::NAN,
-            converged: false,
+        let training = |r: &Option<learners::TrainReport>| {
+            r.map_or_else(|| "not trained".to_string(), |r| r.text())
         };
         match &self.learner {
             Some(LearnerFigures::Fcmac {
@@ -285,24 +282,18 @@ impl DivisionFigures {
                 c,
                 cells,
                 report,
-            }) => {
-                let r = report.unwrap_or(untrained);
-                format!(
-                    "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {} epochs, pattern error max {:.4} RMS {:.4} (mm/deg); {t:.2} s",
-                    r.epochs, r.max_error, r.rms_error
-                )
-            }
+            }) => format!(
+                "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {}; {t:.2} s",
+                training(report)
+            ),
             Some(LearnerFigures::Cmac {
                 layers,
                 cells,
                 report,
-            }) => {
-                let r = report.unwrap_or(untrained);
-                format!(
-                    "  CMAC: {layers} layers of {cells:?} cells; {} epochs, pattern error max {:.4} RMS {:.4}; {t:.2} s",
-                    r.epochs, r.max_error, r.rms_error
-                )
-            }
+            }) => format!(
+                "  CMAC: {layers} layers of {cells:?} cells; {}; {t:.2} s",
+                training(report)
+            ),
             None => "  no learner: compensation uses each region's CEPs".to_string(),
         }
     }

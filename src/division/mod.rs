@@ -14,6 +14,7 @@
 //! CEPs, so directions a small region cannot see stay at the parent's values instead of
 //! wandering (the identifiable combinations are unaffected).
 
+pub mod design;
 mod planner;
 mod space;
 mod tree;

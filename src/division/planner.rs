@@ -13,6 +13,7 @@
 //! measured − target. *Offline* mode works from a recording: a region uses the points that fall
 //! in it, every fifth held out to test (prediction error), all of them in its final fit.
 
+use super::design;
 use super::space::{Bounds, DivisionSpace, Space, SpaceError};
 use super::tree::{expand, RegionNode, RegionTest, RegionTree};
 use crate::compensation::{compensate_from, CompensationOptions};
@@ -52,7 +53,8 @@ pub struct DivisionOptions {
     pub max_regions: usize,
     /// Measurements per region.
     pub per_region: usize,
-    /// Test points per region (planning mode).
+    /// Test points per region (planning mode): its corners, its centre, then a Halton set
+    /// ([`super::design`]).
     pub test_points: usize,
     /// A region whose measurement locations cannot bring κ below this is not split.
     pub kappa_max: f64,
@@ -77,7 +79,7 @@ impl Default for DivisionOptions {
             accuracy_mm: 0.1,
             max_regions: 110,
             per_region: 20,
-            test_points: 10,
+            test_points: 27,
             kappa_max: 1e10,
             min_fraction: 1.0 / 64.0,
             candidates: 60,
@@ -319,12 +321,8 @@ impl Ctx<'_, '_> {
     /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, keep
     /// κ of eq. (4) small (random start, then exchanges that lower κ).
     fn select(&mut self, b: &Bounds, existing: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
-        let mut pool = Vec::new();
-        for _ in 0..self.opts.candidates.max(n) {
-            if let Some(q) = self.space.sample(b, &mut self.rng, 20) {
-                pool.push(q);
-            }
-        }
+        let pool = self.candidate_pool(b, self.opts.candidates.max(n));
+        let mut pool = pool;
         if pool.len() <= n {
             return pool;
         }
@@ -363,6 +361,37 @@ impl Ctx<'_, '_> {
             }
         }
         chosen.into_iter().map(|i| pool[i].clone()).collect()
+    }
+
+    /// Measurable candidate locations in `b`: the box's corners, then a Halton set from a
+    /// random offset ([`design::candidate_design`]); a location that cannot be measured is
+    /// replaced by one drawn at random.
+    fn candidate_pool(&mut self, b: &Bounds, n: usize) -> Vec<Vec<f64>> {
+        let offset = self.rng.random_range(0..1u64 << 20);
+        let seed = self.box_seed(b);
+        let seed = seed.as_deref();
+        let mut pool = Vec::with_capacity(n);
+        for u in design::candidate_design(n, offset) {
+            let q = self
+                .space
+                .pose_at(b, &b.at_unit(&u), &mut self.rng, seed)
+                .or_else(|| self.space.sample(b, &mut self.rng, 3, seed));
+            pool.extend(q);
+        }
+        pool
+    }
+
+    /// A pose of box `b` for the inverse kinematics of Cartesian locations to start from: a
+    /// measurement already in it, else the pose of its centre (None in joint space, which
+    /// needs none).
+    fn box_seed(&mut self, b: &Bounds) -> Option<Vec<f64>> {
+        if self.space.space == Space::Joint {
+            return None;
+        }
+        if let Some((o, _)) = self.in_box(b).first() {
+            return Some(o.q.clone());
+        }
+        self.space.pose_at(b, &b.centre(), &mut self.rng, None)
     }
 
     fn prior(&self, parent: &[f64]) -> Prior {
@@ -455,28 +484,48 @@ impl Ctx<'_, '_> {
 
     fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
         let model = expand(self.basis, self.n_params, cep);
-        let nominal = ErrorParams::zeros(self.rig.chain.layout());
-        let opts = CompensationOptions::default();
         let mut errors = Vec::new();
-        for _ in 0..self.opts.test_points {
-            let Some(q) = self.space.sample(b, &mut self.rng, 20) else {
-                continue;
-            };
-            let target = self.rig.chain.position(&q, &nominal);
-            let Ok(c) =
-                compensate_from(&self.rig.chain, &model, &target, self.rig.held(), q, &opts)
-            else {
+        for u in design::test_design(self.opts.test_points) {
+            let Some((target, command)) = self.test_command(b, &u, &model) else {
                 continue;
             };
             let Mode::Planning(m) = &mut self.mode else {
                 break;
             };
             self.tests_made += 1;
-            if let Some(o) = m.measure(&c.command) {
+            if let Some(o) = m.measure(&command) {
                 errors.push((o.p - target).norm());
             }
         }
         errors
+    }
+
+    /// The target at test location `u` (unit-cube coordinates of `b`) and the command that
+    /// compensates it with `model`; a location whose pose cannot be measured or whose
+    /// compensated command leaves the joint limits (at the workspace's faces) moves towards the
+    /// centre until it can.
+    fn test_command(
+        &mut self,
+        b: &Bounds,
+        u: &[f64; 3],
+        model: &ErrorParams,
+    ) -> Option<(nalgebra::Vector3<f64>, Vec<f64>)> {
+        let nominal = ErrorParams::zeros(self.rig.chain.layout());
+        let opts = CompensationOptions::default();
+        let seed = self.box_seed(b);
+        for f in [1.0, 0.9, 0.75, 0.5] {
+            let x = b.at_unit(&design::towards_centre(u, f));
+            let Some(q) = self.space.pose_at(b, &x, &mut self.rng, seed.as_deref()) else {
+                continue;
+            };
+            let target = self.rig.chain.position(&q, &nominal);
+            if let Ok(c) =
+                compensate_from(&self.rig.chain, model, &target, self.rig.held(), q, &opts)
+            {
+                return Some((target, c.command));
+            }
+        }
+        None
     }
 
     fn offline_test(&self, b: &Bounds, cep: &[f64]) -> Vec<f64> {

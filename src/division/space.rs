@@ -85,6 +85,11 @@ impl Bounds {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// The point at unit-cube coordinates `u` (each in 0..=1) of the box.
+    pub fn at_unit(&self, u: &[f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| self.lo[k] + u[k] * (self.hi[k] - self.lo[k]))
+    }
+
     /// The centre.
     pub fn centre(&self) -> [f64; 3] {
         [
@@ -183,50 +188,71 @@ impl DivisionSpace {
         }
     }
 
-    /// A pose in box `b` drawn at random, measurable on the rig, or None after `tries` attempts.
+    /// A pose in box `b` drawn at random, measurable on the rig, or None after `tries` attempts;
+    /// `seed` as for [`Self::pose_at`].
     pub fn sample<R: RngExt + ?Sized>(
         &self,
         b: &Bounds,
         rng: &mut R,
         tries: usize,
+        seed: Option<&[f64]>,
+    ) -> Option<Vec<f64>> {
+        (0..tries).find_map(|_| {
+            let x: [f64; 3] = std::array::from_fn(|k| rng.random_range(b.lo[k]..=b.hi[k]));
+            self.pose_at(b, &x, rng, seed)
+        })
+    }
+
+    /// A measurable pose whose coordinates are `x`, inside box `b`, or None (no inverse
+    /// kinematics for a Cartesian point, not measurable on the rig, or outside `b`). Joints that
+    /// are neither major nor held are drawn from `rng`. In Cartesian space the inverse
+    /// kinematics starts from `seed` (a pose of the same region), so a region's poses share one
+    /// arm configuration (seed 000 section 4.2: one configuration per Cartesian division) and
+    /// few starts are needed.
+    pub fn pose_at<R: RngExt + ?Sized>(
+        &self,
+        b: &Bounds,
+        x: &[f64; 3],
+        rng: &mut R,
+        seed: Option<&[f64]>,
     ) -> Option<Vec<f64>> {
         let joints = self.rig.chain.joints();
         let held = self.rig.held();
-        for _ in 0..tries {
-            let x: [f64; 3] = std::array::from_fn(|k| rng.random_range(b.lo[k]..=b.hi[k]));
-            let q = match self.space {
-                Space::Joint => {
-                    let mut q: Vec<f64> = joints
-                        .iter()
-                        .enumerate()
-                        .map(|(j, s)| held[j].unwrap_or_else(|| rng.random_range(s.min..=s.max)))
-                        .collect();
-                    for (k, &m) in self.major.iter().enumerate() {
-                        q[m] = x[k];
-                    }
-                    q
+        let q = match self.space {
+            Space::Joint => {
+                let mut q: Vec<f64> = joints
+                    .iter()
+                    .enumerate()
+                    .map(|(j, s)| held[j].unwrap_or_else(|| rng.random_range(s.min..=s.max)))
+                    .collect();
+                for (k, &m) in self.major.iter().enumerate() {
+                    q[m] = x[k];
                 }
-                Space::Cartesian => {
-                    let p = self.spherical.to_world(&Spherical {
-                        r: x[0],
-                        azimuth: x[1],
-                        elevation: x[2],
-                    });
-                    let opts = IkOptions {
+                q
+            }
+            Space::Cartesian => {
+                let p = self.spherical.to_world(&Spherical {
+                    r: x[0],
+                    azimuth: x[1],
+                    elevation: x[2],
+                });
+                // From a seed in the region a reachable point converges in a few steps; an
+                // unreachable one (a spherical box reaches beyond the arm) is given up early.
+                let opts = match seed {
+                    Some(_) => IkOptions {
+                        max_starts: 3,
+                        max_iterations: 25,
+                        ..IkOptions::default()
+                    },
+                    None => IkOptions {
                         max_starts: 8,
                         ..IkOptions::default()
-                    };
-                    match solve_position_ik(&self.world, &self.nominal, &p, held, None, &opts) {
-                        Ok(q) => q,
-                        Err(_) => continue,
-                    }
-                }
-            };
-            if self.rig.measurable(&q).is_ok() && b.contains(&self.coords(&q), &self.full) {
-                return Some(q);
+                    },
+                };
+                solve_position_ik(&self.world, &self.nominal, &p, held, seed, &opts).ok()?
             }
-        }
-        None
+        };
+        (self.rig.measurable(&q).is_ok() && b.contains(&self.coords(&q), &self.full)).then_some(q)
     }
 }
 
