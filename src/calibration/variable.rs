@@ -2,9 +2,11 @@
 
 use super::{
     check_scenario_rig, design_basis, Calibrated, CalibrationError, CalibrationOptions,
-    DivisionFigures, Figures, LearnerFigures, Source,
+    DivisionFigures, Figures, LearnerFigures, Source, UnmeasurableFigures,
 };
-use crate::division::{divide, forget_region, DivisionOptions, DivisionReport, Measurer, Mode};
+use crate::division::{
+    divide, Bounds, DivisionOptions, DivisionReport, DivisionSpace, Measurer, Mode,
+};
 use crate::identification::Observation;
 use crate::learners::{self, Learner};
 use crate::model::{
@@ -58,7 +60,7 @@ pub(super) fn calibrate(
     opts.check()?;
     let mode_name = source.mode_name();
     let basis = design_basis(rig, opts);
-    let division = DivisionOptions {
+    let mut division = DivisionOptions {
         space: opts.space,
         accuracy_mm: opts.accuracy_mm,
         max_regions: opts.region_cap(),
@@ -68,6 +70,11 @@ pub(super) fn calibrate(
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();
+    let unmeasurable = match opts.unmeasurable_at {
+        Some(at) => Some(unmeasurable_region(rig, &basis, &source, &division, opts, at)?),
+        None => None,
+    };
+    division.unmeasurable = unmeasurable.as_ref().map(|u| u.bounds);
     let mut world;
     let (mode, label) = match source {
         Source::Offline {
@@ -89,11 +96,8 @@ pub(super) fn calibrate(
         }
         Source::Measurer { measurer, label } => (Mode::Planning(measurer), label),
     };
-    let mut report = divide(rig, &basis, mode, &division, progress)?;
-    let unmeasurable = opts.unmeasurable_at.map(|p| {
-        let id = forget_region(&mut report.tree, &division_point(opts.space, p));
-        (p, id)
-    });
+    let report = divide(rig, &basis, mode, &division, progress)?;
+    let unmeasurable = unmeasurable.map(|u| u.after(&report));
     let division_time = t0.elapsed();
     let t1 = Instant::now();
     let scale = cep_scale(rig, &basis);
@@ -113,11 +117,46 @@ pub(super) fn calibrate(
     figures.learner = learner.as_ref().map(learner_figures);
     figures.division_time = division_time;
     figures.learner_time = t1.elapsed();
-    let model = model_file(rig, report, learner, opts, mode_name, label);
+    let region = figures.unmeasurable.as_ref().map(|u| u.bounds);
+    let model = model_file(rig, report, learner, opts, mode_name, label, region);
     Ok(Calibrated {
         model,
         figures: Figures::Division(figures),
     })
+}
+
+/// `model` (a variable D-H model of `rig`) with its learner replaced by one of `kind` trained on
+/// the same region tree from the same conventional start: seed 000's FCMAC-against-CMAC
+/// comparison on one division, no new measurement. `LearnerKind::None` drops the learner.
+pub fn with_learner(
+    model: &ModelFile,
+    rig: &Rig,
+    kind: learners::LearnerKind,
+    settings: &learners::LearnerSettings,
+) -> Result<ModelFile, CalibrationError> {
+    settings.check()?;
+    let ModelBody::Variable {
+        conventional, tree, ..
+    } = &model.model
+    else {
+        return Err(CalibrationError::NotVariable);
+    };
+    let path = std::path::Path::new("<model>");
+    let layout = crate::kinematics::Robot::layout(&rig.chain);
+    let basis = tree
+        .basis
+        .iter()
+        .map(|n| layout.find(n).and_then(|id| layout.index_of(id)))
+        .collect::<Option<Vec<usize>>>()
+        .ok_or(CalibrationError::NotVariable)?;
+    let start = crate::model::params_from_entries(rig, conventional, path)?;
+    let init: Vec<f64> = basis.iter().map(|&i| start.get(i)).collect();
+    let trained = learners::train(kind, settings, tree, &init, &cep_scale(rig, &basis));
+    let mut out = model.clone();
+    if let ModelBody::Variable { learner: l, .. } = &mut out.model {
+        *l = trained;
+    }
+    Ok(out)
 }
 
 /// The model file of a division and its learner.
@@ -128,6 +167,7 @@ fn model_file(
     opts: &CalibrationOptions,
     mode_name: &str,
     label: String,
+    unmeasurable: Option<Bounds>,
 ) -> ModelFile {
     let division = DivisionSummary {
         accuracy_mm: opts.accuracy_mm,
@@ -138,6 +178,7 @@ fn model_file(
         test_measurements: report.test_measurements,
         mode: mode_name.into(),
         design_poses: opts.design_poses,
+        unmeasurable,
     };
     ModelFile::new(
         rig,
@@ -214,6 +255,108 @@ fn learner_figures(l: &Learner) -> LearnerFigures {
     }
 }
 
+/// The unmeasurable region of a Fig. 8 calibration: the region of the division containing
+/// `at` (file units) at the depth asked for, or, without one, at the depth of the leaf that
+/// contains it in the same division made without it (a first division whose measurements are
+/// all dropped: only its shape is kept).
+fn unmeasurable_region(
+    rig: &Rig,
+    basis: &[usize],
+    source: &Source<'_>,
+    division: &DivisionOptions,
+    opts: &CalibrationOptions,
+    at: [f64; 3],
+) -> Result<UnmeasurableFigures, CalibrationError> {
+    let x = division_point(opts.space, at);
+    let full = DivisionSpace::new(rig, opts.space)
+        .map_err(crate::division::DivisionError::from)?
+        .full;
+    if !full.holds(&x) {
+        return Err(CalibrationError::Option {
+            option: "--unmeasurable-at",
+            reason: "lies outside the division space".into(),
+        });
+    }
+    let depth = match opts.unmeasurable_depth {
+        Some(d) => d,
+        None => depth_of_leaf_at(rig, basis, source, division, &x)?,
+    };
+    let (bounds, region) = Bounds::region_at(&full, &x, depth);
+    if depth == 0 || bounds.min_fraction(&full) < division.min_fraction {
+        return Err(CalibrationError::Option {
+            option: "--unmeasurable-depth",
+            reason: format!(
+                "{depth}: the region must be a part of the workspace (depth at least 1) that the division can reach (no narrower than 1/{:.0} of it)",
+                1.0 / division.min_fraction
+            ),
+        });
+    }
+    Ok(UnmeasurableFigures {
+        at,
+        region,
+        depth,
+        bounds,
+        borrowed_from: None,
+    })
+}
+
+/// The depth of the leaf containing `x` in the division of `source` made with `division`.
+fn depth_of_leaf_at(
+    rig: &Rig,
+    basis: &[usize],
+    source: &Source<'_>,
+    division: &DivisionOptions,
+    x: &[f64; 3],
+) -> Result<usize, CalibrationError> {
+    let mut world;
+    let mode = match source {
+        Source::Offline { observations, .. } => Mode::Offline(observations),
+        Source::Scenario(sc) => {
+            world = WorldMeasurer::of(sc);
+            Mode::Planning(&mut world)
+        }
+        Source::Measurer { .. } => {
+            return Err(CalibrationError::Option {
+                option: "--unmeasurable-at",
+                reason: "through a measurer (a session) needs --unmeasurable-depth: finding the region's depth would measure the whole division twice".into(),
+            })
+        }
+    };
+    let first = divide(rig, basis, mode, division, |_, _| {})?;
+    Ok(first.tree.root.leaf_at(x, &first.tree.full).id.len() - 1)
+}
+
+impl UnmeasurableFigures {
+    /// The figures once the division is made: the neighbours the region borrowed from.
+    fn after(mut self, report: &DivisionReport) -> Self {
+        self.borrowed_from = report
+            .tree
+            .unmeasurable()
+            .into_iter()
+            .find(|l| l.id == self.region)
+            .and_then(|l| l.borrowed_from.clone());
+        self
+    }
+
+    /// What `rigcal calibrate` prints about it.
+    pub fn text(&self) -> String {
+        let [a, b, c] = self.at;
+        match &self.borrowed_from {
+            Some(ids) => format!(
+                "region {} (depth {}, containing {a},{b},{c}) could not be measured: no measurement was taken inside it and none of its points reached any fit; without a learner it takes the mean CEPs of its {} neighbours ({})",
+                self.region,
+                self.depth,
+                ids.len(),
+                ids.join(" ")
+            ),
+            None => format!(
+                "region {} (depth {}, containing {a},{b},{c}) could not be measured: no measurement inside it; the division did not reach it as a region of its own (region cap), so it lies in a larger region fitted around it",
+                self.region, self.depth
+            ),
+        }
+    }
+}
+
 /// A division-space point from file units (deg for angles, mm for R).
 fn division_point(space: crate::division::Space, p: [f64; 3]) -> [f64; 3] {
     match space {
@@ -227,12 +370,8 @@ impl DivisionFigures {
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
-        if let Some((p, id)) = &self.unmeasurable {
-            let _ = writeln!(
-                s,
-                "region {id} (containing {},{},{}) treated as unmeasurable: its CEPs are dropped",
-                p[0], p[1], p[2]
-            );
+        if let Some(u) = &self.unmeasurable {
+            let _ = writeln!(s, "{}", u.text());
         }
         let _ = writeln!(
             s,

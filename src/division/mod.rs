@@ -22,5 +22,5 @@ mod tree;
 pub use planner::{divide, DivisionError, DivisionOptions, DivisionReport, Measurer, Mode};
 pub use space::{Bounds, DivisionSpace, Space};
 pub use tree::{
-    expand as tree_expand, forget_region, RegionModel, RegionNode, RegionTest, RegionTree,
+    expand as tree_expand, RegionModel, RegionNode, RegionTest, RegionTree,
 };

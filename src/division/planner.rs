@@ -70,6 +70,11 @@ pub struct DivisionOptions {
     pub noise_mm: f64,
     /// Seed of every random choice.
     pub seed: u64,
+    /// A box of the division space that cannot be measured (seed 000 Fig. 8): no measurement
+    /// location or test point is chosen in it, no recorded point in it is used (offline), the
+    /// regions around it split until it is a region of its own, and that region takes the mean
+    /// CEPs of its neighbours. Give a region of the division ([`Bounds::region_at`]).
+    pub unmeasurable: Option<Bounds>,
 }
 
 impl Default for DivisionOptions {
@@ -87,6 +92,7 @@ impl Default for DivisionOptions {
             prior_sigma: (0.5, 0.1f64.to_radians()),
             noise_mm: 0.02,
             seed: 1,
+            unmeasurable: None,
         }
     }
 }
@@ -165,18 +171,10 @@ pub fn divide(
                 let x = ctx.space.coords(&o.q);
                 (o, x)
             })
+            .filter(|(_, x)| !ctx.excluded(x))
             .collect();
     }
-    let mut root = RegionNode {
-        id: "r".into(),
-        bounds: full,
-        cep: None,
-        kappa: f64::INFINITY,
-        measurements: 0,
-        test: None,
-        note: None,
-        children: Vec::new(),
-    };
+    let mut root = RegionNode::unidentified("r".into(), full);
     ctx.populate(&root.bounds, ctx.opts.per_region.max(3 * basis.len()));
     match ctx.identify(&root.bounds, None) {
         Ok((cep, kappa, n)) => {
@@ -195,7 +193,8 @@ pub fn divide(
     let mut leaves = 1;
     progress(leaves, opts.max_regions);
     while leaves < opts.max_regions {
-        let Some(path) = worst_failing_leaf(&root, opts.accuracy_mm) else {
+        let Some(path) = next_to_split(&root, opts.accuracy_mm, opts.unmeasurable.as_ref())
+        else {
             break;
         };
         let node = node_at_mut(&mut root, &path);
@@ -213,6 +212,7 @@ pub fn divide(
             leaf.note = Some(format!("region cap of {} reached", opts.max_regions));
         }
     }
+    borrow_neighbour_ceps(&mut root);
     let all: Vec<Observation> = ctx.data.iter().map(|(o, _)| o.clone()).collect();
     let conventional = fit(
         &rig.chain,
@@ -243,32 +243,77 @@ pub fn divide(
     })
 }
 
-fn worst_failing_leaf(root: &RegionNode, accuracy: f64) -> Option<Vec<usize>> {
+/// The leaf to split next: one that holds the unmeasurable box as a part (its test could not
+/// look there, so it cannot be accepted until the box is a region of its own), else the failing
+/// leaf with the worst test error.
+fn next_to_split(
+    root: &RegionNode,
+    accuracy: f64,
+    unmeasurable: Option<&Bounds>,
+) -> Option<Vec<usize>> {
     fn walk(
         n: &RegionNode,
         path: &mut Vec<usize>,
-        accuracy: f64,
+        judge: &dyn Fn(&RegionNode) -> Option<f64>,
         best: &mut Option<(f64, Vec<usize>)>,
     ) {
         if n.is_leaf() {
-            if n.note.is_none() {
-                if let Some(t) = n.test {
-                    if t.max_mm > accuracy && best.as_ref().is_none_or(|(e, _)| t.max_mm > *e) {
-                        *best = Some((t.max_mm, path.clone()));
-                    }
+            if let Some(e) = judge(n) {
+                if best.as_ref().is_none_or(|(b, _)| e > *b) {
+                    *best = Some((e, path.clone()));
                 }
             }
             return;
         }
         for (i, c) in n.children.iter().enumerate() {
             path.push(i);
-            walk(c, path, accuracy, best);
+            walk(c, path, judge, best);
             path.pop();
         }
     }
+    let judge = |n: &RegionNode| -> Option<f64> {
+        if n.note.is_some() {
+            return None;
+        }
+        if unmeasurable.is_some_and(|u| n.bounds.encloses(u) && n.bounds != *u) {
+            return Some(f64::INFINITY);
+        }
+        n.test.map(|t| t.max_mm).filter(|&e| e > accuracy)
+    };
     let mut best = None;
-    walk(root, &mut Vec::new(), accuracy, &mut best);
+    walk(root, &mut Vec::new(), &judge, &mut best);
     best.map(|(_, p)| p)
+}
+
+/// Gives every unmeasurable leaf the mean CEPs of the measured leaves that share a face with
+/// it (seed 000 section 6: "average CEPs derived from CEPs for neighbouring local regions").
+fn borrow_neighbour_ceps(root: &mut RegionNode) {
+    let measured: Vec<(String, Bounds, Vec<f64>)> = root
+        .leaves()
+        .into_iter()
+        .filter(|l| l.is_measured())
+        .filter_map(|l| Some((l.id.clone(), l.bounds, l.cep.clone()?)))
+        .collect();
+    for leaf in leaves_mut(root) {
+        if leaf.borrowed_from.is_none() {
+            continue;
+        }
+        let near: Vec<&(String, Bounds, Vec<f64>)> = measured
+            .iter()
+            .filter(|(_, b, _)| b.shares_face(&leaf.bounds))
+            .collect();
+        let Some(first) = near.first() else {
+            continue;
+        };
+        let mut mean = vec![0.0; first.2.len()];
+        for (_, _, cep) in &near {
+            for (m, v) in mean.iter_mut().zip(cep) {
+                *m += v / near.len() as f64;
+            }
+        }
+        leaf.cep = Some(mean);
+        leaf.borrowed_from = Some(near.iter().map(|(id, _, _)| id.clone()).collect());
+    }
 }
 
 fn node_at_mut<'n>(root: &'n mut RegionNode, path: &[usize]) -> &'n mut RegionNode {
@@ -288,6 +333,25 @@ fn leaves_mut(n: &mut RegionNode) -> Vec<&mut RegionNode> {
 }
 
 impl Ctx<'_, '_> {
+    /// True for a point of the unmeasurable box.
+    fn excluded(&self, x: &[f64; 3]) -> bool {
+        self.opts.unmeasurable.is_some_and(|u| u.holds(x))
+    }
+
+    /// [`DivisionSpace::pose_at`], never inside the unmeasurable box.
+    fn pose_at(&mut self, b: &Bounds, x: &[f64; 3], seed: Option<&[f64]>) -> Option<Vec<f64>> {
+        let q = self.space.pose_at(b, x, &mut self.rng, seed)?;
+        (!self.excluded(&self.space.coords(&q))).then_some(q)
+    }
+
+    /// [`DivisionSpace::sample`], never inside the unmeasurable box.
+    fn sample(&mut self, b: &Bounds, tries: usize, seed: Option<&[f64]>) -> Option<Vec<f64>> {
+        (0..tries).find_map(|_| {
+            let q = self.space.sample(b, &mut self.rng, 1, seed)?;
+            (!self.excluded(&self.space.coords(&q))).then_some(q)
+        })
+    }
+
     fn in_box(&self, b: &Bounds) -> Vec<&(Observation, [f64; 3])> {
         self.data
             .iter()
@@ -373,9 +437,8 @@ impl Ctx<'_, '_> {
         let mut pool = Vec::with_capacity(n);
         for u in design::candidate_design(n, offset) {
             let q = self
-                .space
-                .pose_at(b, &b.at_unit(&u), &mut self.rng, seed)
-                .or_else(|| self.space.sample(b, &mut self.rng, 3, seed));
+                .pose_at(b, &b.at_unit(&u), seed)
+                .or_else(|| self.sample(b, 3, seed));
             pool.extend(q);
         }
         pool
@@ -391,7 +454,7 @@ impl Ctx<'_, '_> {
         if let Some((o, _)) = self.in_box(b).first() {
             return Some(o.q.clone());
         }
-        self.space.pose_at(b, &b.centre(), &mut self.rng, None)
+        self.pose_at(b, &b.centre(), None)
     }
 
     fn prior(&self, parent: &[f64]) -> Prior {
@@ -515,7 +578,7 @@ impl Ctx<'_, '_> {
         let seed = self.box_seed(b);
         for f in [1.0, 0.9, 0.75, 0.5] {
             let x = b.at_unit(&design::towards_centre(u, f));
-            let Some(q) = self.space.pose_at(b, &x, &mut self.rng, seed.as_deref()) else {
+            let Some(q) = self.pose_at(b, &x, seed.as_deref()) else {
                 continue;
             };
             let target = self.rig.chain.position(&q, &nominal);
@@ -560,18 +623,18 @@ impl Ctx<'_, '_> {
         let parent = node.cep.clone();
         let mut children = Vec::new();
         for (k, bounds) in [a, b].into_iter().enumerate() {
+            let mut child = RegionNode::unidentified(format!("{}{k}", node.id), bounds);
+            if self.opts.unmeasurable.is_some_and(|u| u.encloses(&bounds)) {
+                child.note = Some("unmeasurable: no measurement inside it".into());
+                child.borrowed_from = Some(Vec::new());
+                children.push(child);
+                continue;
+            }
             self.populate(&bounds, self.opts.per_region);
             let (cep, kappa, n) = self.identify(&bounds, parent.as_deref())?;
-            let mut child = RegionNode {
-                id: format!("{}{k}", node.id),
-                bounds,
-                cep: Some(cep),
-                kappa,
-                measurements: n,
-                test: None,
-                note: None,
-                children: Vec::new(),
-            };
+            child.cep = Some(cep);
+            child.kappa = kappa;
+            child.measurements = n;
             child.test = self.test(&child);
             children.push(child);
         }

@@ -85,6 +85,46 @@ impl Bounds {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// The region of depth `depth` of a division of `full` that contains `x`, with its id (`r`,
+    /// `r0`, `r01`, …): every split halves its region across the widest dimension, so the
+    /// regions containing a point depend on the geometry alone, not on the measurements.
+    pub fn region_at(full: &Bounds, x: &[f64; 3], depth: usize) -> (Bounds, String) {
+        let mut b = *full;
+        let mut id = String::from("r");
+        for _ in 0..depth {
+            let (lo, hi) = b.halves(b.widest(full));
+            if lo.contains(x, full) {
+                b = lo;
+                id.push('0');
+            } else {
+                b = hi;
+                id.push('1');
+            }
+        }
+        (b, id)
+    }
+
+    /// True when `other` lies inside this box (faces may coincide).
+    pub fn encloses(&self, other: &Bounds) -> bool {
+        (0..3).all(|k| self.lo[k] <= other.lo[k] + 1e-12 && other.hi[k] <= self.hi[k] + 1e-12)
+    }
+
+    /// True when the two boxes share part of a face: they touch across one dimension and
+    /// overlap (with positive width) in the other two.
+    pub fn shares_face(&self, other: &Bounds) -> bool {
+        let touch = |k: usize| {
+            (self.hi[k] - other.lo[k]).abs() < 1e-12 || (other.hi[k] - self.lo[k]).abs() < 1e-12
+        };
+        let overlap =
+            |k: usize| self.lo[k].max(other.lo[k]) < self.hi[k].min(other.hi[k]) - 1e-12;
+        (0..3).any(|k| touch(k) && (0..3).filter(|&j| j != k).all(overlap))
+    }
+
+    /// True when `x` lies in the box, every face closed.
+    pub fn holds(&self, x: &[f64; 3]) -> bool {
+        (0..3).all(|k| x[k] >= self.lo[k] && x[k] <= self.hi[k])
+    }
+
     /// The point at unit-cube coordinates `u` (each in 0..=1) of the box.
     pub fn at_unit(&self, u: &[f64; 3]) -> [f64; 3] {
         std::array::from_fn(|k| self.lo[k] + u[k] * (self.hi[k] - self.lo[k]))

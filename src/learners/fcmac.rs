@@ -89,6 +89,37 @@ impl Fcmac {
         }
     }
 
+    /// A network over `range` whose unhashed association cells start at `start` of the point
+    /// their sensors centre on (a hashed network starts every cell at `init`, as [`Self::new`]).
+    pub fn starting_at(
+        config: FcmacConfig,
+        range: Bounds,
+        init: &[f64],
+        start: impl Fn(&[f64; 3]) -> Vec<f64>,
+    ) -> Self {
+        let mut f = Self::new(config, range, init);
+        if f.config.hash_size.is_some() {
+            return f;
+        }
+        let [n0, n1, n2] = f.config.cells;
+        let centre = |d: usize, i: usize| {
+            let n = f.config.cells[d];
+            range.lo[d] + (range.hi[d] - range.lo[d]) * i as f64 / (n - 1).max(1) as f64
+        };
+        for i in 0..n0 {
+            for j in 0..n1 {
+                for k in 0..n2 {
+                    let w = start(&[centre(0, i), centre(1, j), centre(2, k)]);
+                    let cell = (i * n1 + j) * n2 + k;
+                    if w.len() == f.outputs {
+                        f.weights[cell * f.outputs..(cell + 1) * f.outputs].copy_from_slice(&w);
+                    }
+                }
+            }
+        }
+        f
+    }
+
     /// Number of association cells.
     pub fn cell_count(&self) -> usize {
         self.weights.len() / self.outputs.max(1)

@@ -153,7 +153,8 @@ impl Learner {
 
 /// Training patterns from a region tree: a lattice of `grid[d]` points per input dimension over
 /// the whole workspace, each asking for the CEPs (scaled to file units) of the leaf it falls in;
-/// points in a leaf without CEPs (an unmeasurable region) are left out, so the learner must
+/// points in a leaf whose CEPs were not identified from its own measurements (an unmeasurable
+/// region, whatever it borrowed from its neighbours) are left out, so the learner must
 /// generalise there. A lattice at half the sensor spacing reaches every association cell.
 pub fn patterns_from_tree(tree: &RegionTree, scale: &[f64], grid: [usize; 3]) -> Vec<Pattern> {
     let mut out = Vec::new();
@@ -164,7 +165,8 @@ pub fn patterns_from_tree(tree: &RegionTree, scale: &[f64], grid: [usize; 3]) ->
         for j in 0..grid[1] {
             for k in 0..grid[2] {
                 let x = [at(0, i), at(1, j), at(2, k)];
-                let Some(cep) = &tree.root.leaf_at(&x, &f).cep else {
+                let leaf = tree.root.leaf_at(&x, &f);
+                let (Some(cep), true) = (&leaf.cep, leaf.is_measured()) else {
                     continue;
                 };
                 out.push(Pattern {
@@ -364,7 +366,16 @@ pub fn train(
         LearnerKind::Fcmac => {
             let config = settings.fcmac_config(tree.space);
             let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n - 1));
-            let mut f = Fcmac::new(config, tree.full, &init_scaled);
+            // Each cell starts at the CEPs of the region at its centre (an unmeasurable region's
+            // borrowed ones included), so cells no pattern reaches answer with the region-wise
+            // model rather than the whole workspace's.
+            let start = |x: &[f64; 3]| -> Vec<f64> {
+                match &tree.root.lookup(x, &tree.full).and_then(|n| n.cep.as_ref()) {
+                    Some(cep) => cep.iter().zip(scale).map(|(v, s)| v * s).collect(),
+                    None => init_scaled.clone(),
+                }
+            };
+            let mut f = Fcmac::starting_at(config, tree.full, &init_scaled, start);
             f.train(&patterns);
             Some(Learner::Fcmac(f))
         }
