@@ -5,8 +5,9 @@
 //! uniform points leave every corner's eighth of the box empty with probability 0.88^20 ≈ 8 %,
 //! and the corner itself far more often), so a region could pass its test and still miss the
 //! demand at its corners, where paths cross from one region to the next. The test design is
-//! therefore the eight corners (pulled in by [`CORNER_INSET`], so a compensated command stays
-//! inside the joint limits), the centre, then a Halton low-discrepancy sequence that spreads
+//! therefore a 3 × 3 × 3 grid — the eight corners (pulled in by [`CORNER_INSET`], so a
+//! compensated command stays inside the joint limits), the edges' midpoints, the faces' centres
+//! and the centre — then a Halton low-discrepancy sequence that spreads
 //! the remaining points evenly; the measurement candidates start with the same corners, so the
 //! κ selection can choose the extremes a well-conditioned design wants.
 
@@ -106,20 +107,25 @@ mod tests {
     }
 
     #[test]
-    fn the_test_design_starts_with_every_corner_and_the_centre() {
-        let d = test_design(20);
-        assert_eq!(d.len(), 20);
+    fn the_test_design_is_the_3x3x3_grid_corners_first_then_halton_points() {
+        let d = test_design(40);
+        assert_eq!(d.len(), 40);
         for c in 0..8 {
             let corner: [f64; 3] = std::array::from_fn(|k| ((c >> k) & 1) as f64);
             assert!(d[..8]
                 .iter()
                 .any(|u| (0..3).all(|k| (u[k] - corner[k]).abs() <= CORNER_INSET + 1e-12)));
         }
-        assert_eq!(d[8], [0.5; 3]);
-        // Halton points fill the octants evenly: the 11 after the centre touch at least 7.
+        // 12 edge midpoints (one coordinate at 0.5), 6 face centres (two), the centre last.
+        let halves = |u: &[f64; 3]| u.iter().filter(|&&v| v == 0.5).count();
+        assert!(d[8..20].iter().all(|u| halves(u) == 1));
+        assert!(d[20..26].iter().all(|u| halves(u) == 2));
+        assert_eq!(d[26], [0.5; 3]);
+        // Halton points fill the octants evenly: the 13 after the grid touch at least 7.
         let octants: std::collections::HashSet<[bool; 3]> =
-            d[9..].iter().map(|u| u.map(|v| v >= 0.5)).collect();
+            d[27..].iter().map(|u| u.map(|v| v >= 0.5)).collect();
         assert!(octants.len() >= 7, "{octants:?}");
+        assert_eq!(d[27], halton(1));
         assert_eq!(test_design(5).len(), 5);
     }
 
@@ -127,7 +133,7 @@ mod tests {
     fn test_points_are_not_candidate_locations() {
         let t = test_design(40);
         let c = candidate_design(200, 17);
-        for u in &t[9..] {
+        for u in &t[27..] {
             assert!(c.iter().all(|v| v != u));
         }
     }
