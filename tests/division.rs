@@ -203,7 +203,10 @@ struct Recorder<'a> {
 }
 
 impl Measurer for Recorder<'_> {
-    fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, rigcal::division::MeasureError> {
+    fn measure(
+        &mut self,
+        q: &[f64],
+    ) -> Result<Option<Observation>, rigcal::division::MeasureError> {
         self.asked.push(q.to_vec());
         self.inner.measure(q)
     }
@@ -247,10 +250,7 @@ fn planning_never_measures_inside_the_unmeasurable_region() {
         .filter(|q| hole.holds(&space.coords(q)))
         .count();
     assert_eq!(inside, 0, "measurements inside region {id}");
-    let ModelBody::Variable {
-        tree, division, ..
-    } = &cal.model.model
-    else {
+    let ModelBody::Variable { tree, division, .. } = &cal.model.model else {
         panic!("not a variable model");
     };
     assert_eq!(division.unmeasurable, Some(hole));
@@ -269,7 +269,10 @@ fn planning_never_measures_inside_the_unmeasurable_region() {
     assert!(!neighbours.is_empty());
     let cep = leaf.cep.as_ref().unwrap();
     for (k, v) in cep.iter().enumerate() {
-        let mean = neighbours.iter().map(|n| n.cep.as_ref().unwrap()[k]).sum::<f64>()
+        let mean = neighbours
+            .iter()
+            .map(|n| n.cep.as_ref().unwrap()[k])
+            .sum::<f64>()
             / neighbours.len() as f64;
         assert!((v - mean).abs() < 1e-12);
     }

@@ -348,7 +348,10 @@ fn paper_fig6_scenario_reads_eq6_as_gear_harmonics_at_a_share_of_8_to_10_percent
     let (lo, hi) = split.total_range();
     assert!(lo >= 0.4 && hi <= 1.2, "{lo}–{hi}");
     let share = split.share();
-    assert!((0.091..=0.093).contains(&share), "the file says 9.2 %: {share}");
+    assert!(
+        (0.091..=0.093).contains(&share),
+        "the file says 9.2 %: {share}"
+    );
 }
 
 #[test]

@@ -105,7 +105,10 @@ impl FigureRun {
         }
         s.push('\n');
         if let Some(inside) = &self.path.inside_unmeasurable {
-            let region = inside.region.as_deref().unwrap_or("(not a region of its own)");
+            let region = inside
+                .region
+                .as_deref()
+                .unwrap_or("(not a region of its own)");
             let _ = write!(
                 s,
                 "    inside the unmeasurable region {region} ({} points; regions = its neighbours' mean CEPs):",

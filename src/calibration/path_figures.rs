@@ -83,7 +83,10 @@ impl PathFigures {
         let Some(inside) = &self.inside_unmeasurable else {
             return String::new();
         };
-        let region = inside.region.as_deref().unwrap_or("(within a larger region)");
+        let region = inside
+            .region
+            .as_deref()
+            .unwrap_or("(within a larger region)");
         let (first, last) = (inside.points[0], inside.points[inside.points.len() - 1]);
         let mut s = format!(
             "  inside the unmeasurable region {region} (points {first}–{last}, {} of them), mean / max mm:",
@@ -108,7 +111,10 @@ impl MethodFigures {
 fn method_figures(r: &PathResult, only: Option<&[usize]>, trace: &[TracedCep]) -> MethodFigures {
     let errors: Vec<f64> = match only {
         None => r.errors.clone(),
-        Some(idx) => idx.iter().filter_map(|&i| r.errors.get(i).copied()).collect(),
+        Some(idx) => idx
+            .iter()
+            .filter_map(|&i| r.errors.get(i).copied())
+            .collect(),
     };
     let finite: Vec<f64> = errors.iter().copied().filter(|e| e.is_finite()).collect();
     let mean_mm = finite.iter().sum::<f64>() / finite.len().max(1) as f64;

@@ -71,7 +71,9 @@ pub(super) fn calibrate(
     };
     let t0 = Instant::now();
     let unmeasurable = match opts.unmeasurable_at {
-        Some(at) => Some(unmeasurable_region(rig, &basis, &source, &division, opts, at)?),
+        Some(at) => Some(unmeasurable_region(
+            rig, &basis, &source, &division, opts, at,
+        )?),
         None => None,
     };
     division.unmeasurable = unmeasurable.as_ref().map(|u| u.bounds);

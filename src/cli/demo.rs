@@ -16,8 +16,8 @@
 //! `summary.json` holds its figures.
 
 use crate::calibration::{
-    self, rig_check, CalibrationOptions, FigureRun, MethodFigures, PaperFigure,
-    PaperRegimeSummary, PathFigures, Source,
+    self, rig_check, CalibrationOptions, FigureRun, MethodFigures, PaperFigure, PaperRegimeSummary,
+    PathFigures, Source,
 };
 use crate::division::Space;
 use crate::identification::Level;
@@ -124,7 +124,9 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
         seed: a.seed,
         ..Default::default()
     };
-    heading("1. Seed 000's simulations in the paper's regime (sim/paper-fig6.toml, ideal instrument)");
+    heading(
+        "1. Seed 000's simulations in the paper's regime (sim/paper-fig6.toml, ideal instrument)",
+    );
     let fig6_path = calibration::fig6_path(&rig, 101);
     let fig6 = paper_model(a, &rig, &sc, "fig6", &opts)?;
     let fig6_run = paper_run(a, PaperFigure::Fig6, &fig6, &fig6_path)?;
@@ -133,7 +135,12 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
         ..opts.clone()
     };
     let fig7 = paper_model(a, &rig, &sc, "fig7", &cartesian)?;
-    let fig7_run = paper_run(a, PaperFigure::Fig7, &fig7, &calibration::fig7_path(&rig, 101)?)?;
+    let fig7_run = paper_run(
+        a,
+        PaperFigure::Fig7,
+        &fig7,
+        &calibration::fig7_path(&rig, 101)?,
+    )?;
     let fig8_opts = CalibrationOptions {
         unmeasurable_at: Some(FIG8_POINT),
         unmeasurable_depth: Some(leaf_depth_at(&fig6.0, &rig, FIG8_POINT)?),
@@ -142,12 +149,7 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
     let fig8 = paper_model(a, &rig, &sc, "fig8", &fig8_opts)?;
     let fig8_run = paper_run(a, PaperFigure::Fig8, &fig8, &fig6_path)?;
     heading("The same Fig. 6 division with Albus's CMAC in place of the FCMAC");
-    let cmac = calibration::with_learner(
-        &fig6.0,
-        &rig,
-        LearnerKind::Cmac,
-        &opts.learner_settings,
-    )?;
+    let cmac = calibration::with_learner(&fig6.0, &rig, LearnerKind::Cmac, &opts.learner_settings)?;
     let cmac_file = a.out.join("paper-fig6-cmac-model.json");
     cmac.save(&cmac_file)?;
     let cmac_path = evaluate_paper(a, &cmac_file, &fig6_path)?;
@@ -181,7 +183,10 @@ fn paper_model(
     opts: &CalibrationOptions,
 ) -> Result<(ModelFile, PathBuf)> {
     let file = a.out.join(format!("paper-{name}-model.json"));
-    println!("\n-- {name}: rigcal calibrate --scenario {PAPER_SCENARIO} --division {:?}", opts.space);
+    println!(
+        "\n-- {name}: rigcal calibrate --scenario {PAPER_SCENARIO} --division {:?}",
+        opts.space
+    );
     let c = calibration::calibrate(rig, Source::Scenario(sc), opts)?;
     print!("{}", c.text());
     c.model.save(&file)?;

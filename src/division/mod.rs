@@ -23,6 +23,4 @@ pub use planner::{
     divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
 };
 pub use space::{Bounds, DivisionSpace, Space};
-pub use tree::{
-    expand as tree_expand, RegionModel, RegionNode, RegionTest, RegionTree,
-};
+pub use tree::{expand as tree_expand, RegionModel, RegionNode, RegionTest, RegionTree};

@@ -223,8 +223,7 @@ pub fn divide(
     let mut leaves = 1;
     progress(leaves, opts.max_regions);
     while leaves < opts.max_regions {
-        let Some(path) = next_to_split(&root, opts.accuracy_mm, opts.unmeasurable.as_ref())
-        else {
+        let Some(path) = next_to_split(&root, opts.accuracy_mm, opts.unmeasurable.as_ref()) else {
             break;
         };
         let node = node_at_mut(&mut root, &path);

@@ -115,8 +115,7 @@ impl Bounds {
         let touch = |k: usize| {
             (self.hi[k] - other.lo[k]).abs() < 1e-12 || (other.hi[k] - self.lo[k]).abs() < 1e-12
         };
-        let overlap =
-            |k: usize| self.lo[k].max(other.lo[k]) < self.hi[k].min(other.hi[k]) - 1e-12;
+        let overlap = |k: usize| self.lo[k].max(other.lo[k]) < self.hi[k].min(other.hi[k]) - 1e-12;
         (0..3).any(|k| touch(k) && (0..3).filter(|&j| j != k).all(overlap))
     }
 
