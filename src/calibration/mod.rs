@@ -279,8 +279,8 @@ pub struct DivisionFigures {
     pub unsplit: Vec<(String, String)>,
     /// Conventional fit on the same data: (RMS, max) residual (mm).
     pub conventional_mm: (f64, f64),
-    /// The region that could not be measured (Fig. 8).
-    pub unmeasurable: Option<UnmeasurableFigures>,
+    /// The region that could not be measured (Fig. 8); boxed, as most divisions have none.
+    pub unmeasurable: Option<Box<UnmeasurableFigures>>,
     /// The learner, when one was trained.
     pub learner: Option<LearnerFigures>,
     /// Time of the division.

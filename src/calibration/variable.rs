@@ -115,7 +115,7 @@ pub(super) fn calibrate(
         &scale,
     );
     let mut figures = figures(&report, opts, mode_name);
-    figures.unmeasurable = unmeasurable;
+    figures.unmeasurable = unmeasurable.map(Box::new);
     figures.learner = learner.as_ref().map(learner_figures);
     figures.division_time = division_time;
     figures.learner_time = t1.elapsed();
