@@ -176,6 +176,10 @@ pub struct DivisionSummary {
     /// Random poses the identifiable basis was chosen on (older files: the paper's 100).
     #[serde(default = "paper_design_poses")]
     pub design_poses: usize,
+    /// The box of the division space that could not be measured (seed 000 Fig. 8; internal
+    /// units: rad, mm): nothing inside it was measured or fitted.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub unmeasurable: Option<crate::division::Bounds>,
 }
 
 /// The design poses of files written before they were recorded.

@@ -195,3 +195,156 @@ fn offline_division_works_from_a_recording_without_regions() {
         max(&conv)
     );
 }
+
+/// A measurer that keeps every pose it was sent to.
+struct Recorder<'a> {
+    inner: &'a mut dyn Measurer,
+    asked: Vec<Vec<f64>>,
+}
+
+impl Measurer for Recorder<'_> {
+    fn measure(
+        &mut self,
+        q: &[f64],
+    ) -> Result<Option<Observation>, rigcal::division::MeasureError> {
+        self.asked.push(q.to_vec());
+        self.inner.measure(q)
+    }
+}
+
+/// Fig. 8 without leaks, planning mode: not one measurement (identification or test) is taken
+/// inside the unmeasurable region, the region is a leaf of its own with its neighbours' mean
+/// CEPs, and no learner pattern lies inside it.
+#[test]
+fn planning_never_measures_inside_the_unmeasurable_region() {
+    use rigcal::calibration::{calibrate, CalibrationOptions, Source, WorldMeasurer};
+    use rigcal::division::{Bounds, DivisionSpace, Space};
+    use rigcal::model::ModelBody;
+    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    let rig = &sc.rig;
+    let at = [92.0, 75.0, -22.0];
+    let depth = 5;
+    let space = DivisionSpace::new(rig, Space::Joint).unwrap();
+    let x = at.map(f64::to_radians);
+    let (hole, id) = Bounds::region_at(&space.full, &x, depth);
+    let mut world = WorldMeasurer::of(&sc);
+    let mut recorder = Recorder {
+        inner: &mut world,
+        asked: Vec::new(),
+    };
+    let opts = CalibrationOptions {
+        max_regions: Some(24),
+        unmeasurable_at: Some(at),
+        unmeasurable_depth: Some(depth),
+        ..CalibrationOptions::default()
+    };
+    let source = Source::Measurer {
+        measurer: &mut recorder,
+        label: "recorder".into(),
+    };
+    let cal = calibrate(rig, source, &opts).unwrap();
+    assert!(recorder.asked.len() > 200, "{}", recorder.asked.len());
+    let inside = recorder
+        .asked
+        .iter()
+        .filter(|q| hole.holds(&space.coords(q)))
+        .count();
+    assert_eq!(inside, 0, "measurements inside region {id}");
+    let ModelBody::Variable { tree, division, .. } = &cal.model.model else {
+        panic!("not a variable model");
+    };
+    assert_eq!(division.unmeasurable, Some(hole));
+    let holes = tree.unmeasurable();
+    assert_eq!(holes.len(), 1);
+    let leaf = holes[0];
+    assert_eq!((leaf.id.as_str(), leaf.bounds), (id.as_str(), hole));
+    assert_eq!(leaf.measurements, 0);
+    // Its CEPs are the mean of the named neighbours', each of which shares a face with it.
+    let neighbours: Vec<_> = tree
+        .root
+        .leaves()
+        .into_iter()
+        .filter(|l| leaf.borrowed_from.as_ref().unwrap().contains(&l.id))
+        .collect();
+    assert!(!neighbours.is_empty());
+    let cep = leaf.cep.as_ref().unwrap();
+    for (k, v) in cep.iter().enumerate() {
+        let mean = neighbours
+            .iter()
+            .map(|n| n.cep.as_ref().unwrap()[k])
+            .sum::<f64>()
+            / neighbours.len() as f64;
+        assert!((v - mean).abs() < 1e-12);
+    }
+    for n in &neighbours {
+        assert!(n.bounds.shares_face(&hole) && n.is_measured(), "{}", n.id);
+    }
+    let patterns = rigcal::learners::patterns_from_tree(tree, &[1.0; 15], [33, 21, 21]);
+    assert!(!patterns.is_empty());
+    assert!(patterns.iter().all(|p| !hole.contains(&p.x, &tree.full)));
+}
+
+/// Fig. 8 without leaks, offline: poisoning every recorded point inside the unmeasurable region
+/// (5 mm off) changes nothing — not the regions' CEPs, not the conventional fit, not the FCMAC —
+/// so none of them reaches any fit.
+#[test]
+fn offline_points_inside_the_unmeasurable_region_reach_no_fit() {
+    use rigcal::calibration::{calibrate, CalibrationOptions, Source};
+    use rigcal::division::{Bounds, DivisionSpace, Space};
+    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    let rig = &sc.rig;
+    let poses = random_poses(
+        rig.chain.joints(),
+        rig.held(),
+        1200,
+        &mut ChaCha8Rng::seed_from_u64(4),
+    );
+    let world = sc.world();
+    let at = [92.0, 75.0, -22.0];
+    let depth = 4;
+    let space = DivisionSpace::new(rig, Space::Joint).unwrap();
+    let (hole, _) = Bounds::region_at(&space.full, &at.map(f64::to_radians), depth);
+    let clean: Vec<Observation> = poses
+        .iter()
+        .map(|q| Observation {
+            q: q.clone(),
+            p: world.true_position(q),
+        })
+        .collect();
+    let poisoned: Vec<Observation> = clean
+        .iter()
+        .map(|o| {
+            let mut o = o.clone();
+            if hole.holds(&space.coords(&o.q)) {
+                o.p += Vector3::new(5.0, -5.0, 5.0);
+            }
+            o
+        })
+        .collect();
+    let n_inside = clean
+        .iter()
+        .filter(|o| hole.holds(&space.coords(&o.q)))
+        .count();
+    assert!(n_inside >= 20, "{n_inside} recorded points inside");
+    let outside: Vec<Observation> = clean
+        .iter()
+        .filter(|o| !hole.holds(&space.coords(&o.q)))
+        .cloned()
+        .collect();
+    let opts = CalibrationOptions {
+        max_regions: Some(16),
+        unmeasurable_at: Some(at),
+        unmeasurable_depth: Some(depth),
+        ..CalibrationOptions::default()
+    };
+    let model = |obs: &[Observation]| {
+        let source = Source::Offline {
+            observations: obs,
+            label: "recording".into(),
+        };
+        calibrate(rig, source, &opts).unwrap().model
+    };
+    let (a, b) = (model(&poisoned), model(&outside));
+    assert_eq!(a.model, b.model);
+    assert_eq!(a.fitted_from.measurements, clean.len() - n_inside);
+}

@@ -321,6 +321,40 @@ fn paper_scenario_has_the_papers_error_sizes() {
 }
 
 #[test]
+fn paper_fig6_scenario_reads_eq6_as_gear_harmonics_at_a_share_of_8_to_10_percent() {
+    let sc = Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    let literal = Scenario::load(Path::new("sim/paper-sim.toml"), None).unwrap();
+    assert_eq!(sc.truth, literal.truth, "the same pinned geometric errors");
+    let w = sc.world();
+    // Δq_i = 0.008° · sin(k_i q_i + φ_i), k = (4, 5, 6), φ = (30°, 70°, 110°), by hand at
+    // q = (60°, 60°, −35°): sin 270° = −1, sin 370° = sin 10°, sin(−100°).
+    let q = deg(&[60.0, 60.0, -35.0, 0.0, 0.0]);
+    let mut h = MotionHistory::default();
+    h.record(&q, 0.0);
+    let actual = w.actual_joints(&q, 0.0, &h);
+    let expected = [
+        -0.008,
+        0.008 * 10f64.to_radians().sin(),
+        0.008 * (-100f64).to_radians().sin(),
+    ];
+    for j in 0..3 {
+        assert_relative_eq!(
+            (actual[j] - q[j]).to_degrees(),
+            expected[j],
+            epsilon = 1e-12
+        );
+    }
+    let split = w.error_split(&fig6_path(101, w.chain().dof()));
+    let (lo, hi) = split.total_range();
+    assert!(lo >= 0.4 && hi <= 1.2, "{lo}–{hi}");
+    let share = split.share();
+    assert!(
+        (0.091..=0.093).contains(&share),
+        "the file says 9.2 %: {share}"
+    );
+}
+
+#[test]
 fn every_shipped_scenario_loads() {
     let mut n = 0;
     for entry in std::fs::read_dir("sim").unwrap() {

@@ -7,7 +7,8 @@
 //!   cap, design poses, FCMAC sensors and c) are [`CalibrationOptions`] with the paper's values
 //!   as defaults.
 //! - [`through_session`]: planning mode through an opened session, with resume.
-//! - [`evaluate`](evaluate::evaluate): models along paths against a scenario's truth.
+//! - [`evaluate`](evaluate::evaluate): models along paths against a scenario's truth;
+//!   [`PathFigures`] the same as data (and JSON), with the error inside an unmeasurable region.
 //! - [`compare`](compare::compare): conventional, variable D-H and neural side by side.
 //! - [`rig_check`]: checking a model on the rig itself along a measurable path.
 //!
@@ -17,6 +18,8 @@
 pub mod compare;
 pub mod evaluate;
 mod neural;
+pub mod paper_regime;
+pub mod path_figures;
 pub mod rig_check;
 mod through_session;
 mod variable;
@@ -28,11 +31,13 @@ pub use evaluate::{
     build_paths, evaluate, fig6_path, fig7_path, path_table, traced_ceps, write_path_files,
     PathChoice, PathFiles, PathOptions, TracedCep, PAPER_TRACED_CEPS,
 };
+pub use paper_regime::{FigureRun, PaperFigure, PaperRegimeSummary};
+pub use path_figures::{EvaluationJson, InsideFigures, MethodFigures, PathFigures};
 pub use through_session::{
     planning_note, refuse_other_options, resumed_requests, through_session, PlanningFiles,
     SessionCalibrated,
 };
-pub use variable::WorldMeasurer;
+pub use variable::{with_learner, WorldMeasurer};
 
 use crate::division::{DivisionError, Measurer, Space};
 use crate::identification::Observation;
@@ -61,8 +66,10 @@ pub struct CalibrationOptions {
     /// Measurements per region.
     #[arg(long, default_value_t = 20)]
     pub per_region: usize,
-    /// Test points per region (planning mode).
-    #[arg(long, default_value_t = 20)]
+    /// Test points per region (planning mode): the 27 points of a 3 × 3 × 3 grid over the
+    /// region (corners, edge midpoints, face centres, centre), then a Halton set; fewer take
+    /// the corners first.
+    #[arg(long, default_value_t = 27)]
     pub test_points: usize,
     /// Random poses the identifiable basis (the CEPs) is chosen on.
     #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
@@ -79,11 +86,16 @@ pub struct CalibrationOptions {
     /// Seed of every random choice.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// A point of the division space (file units: deg, or mm for R) whose region is treated as
-    /// unmeasurable: its CEPs are dropped after the division and the learner must generalise
-    /// there (seed 000 Fig. 8).
+    /// A point of the division space (file units: deg, or mm for R) whose region cannot be
+    /// measured (seed 000 Fig. 8): no measurement is taken (or, offline, used) inside it, so
+    /// none reaches a fit; without a learner it takes its neighbours' mean CEPs, a learner
+    /// generalises there.
     #[arg(skip)]
     pub unmeasurable_at: Option<[f64; 3]>,
+    /// The depth of that region in the division (the root is 0); None: the depth of the leaf
+    /// containing the point in the same division made without it.
+    #[arg(skip)]
+    pub unmeasurable_depth: Option<usize>,
 }
 
 /// The paper's design poses for choosing the identifiable basis.
@@ -96,13 +108,14 @@ impl Default for CalibrationOptions {
             accuracy_mm: 0.1,
             max_regions: None,
             per_region: 20,
-            test_points: 20,
+            test_points: 27,
             design_poses: PAPER_DESIGN_POSES,
             learner: LearnerKind::Fcmac,
             learner_settings: LearnerSettings::default(),
             neural: NeuralOptions::default(),
             seed: 1,
             unmeasurable_at: None,
+            unmeasurable_depth: None,
         }
     }
 }
@@ -266,14 +279,30 @@ pub struct DivisionFigures {
     pub unsplit: Vec<(String, String)>,
     /// Conventional fit on the same data: (RMS, max) residual (mm).
     pub conventional_mm: (f64, f64),
-    /// The region treated as unmeasurable: (the point asked for, the region's id).
-    pub unmeasurable: Option<([f64; 3], String)>,
+    /// The region that could not be measured (Fig. 8); boxed, as most divisions have none.
+    pub unmeasurable: Option<Box<UnmeasurableFigures>>,
     /// The learner, when one was trained.
     pub learner: Option<LearnerFigures>,
     /// Time of the division.
     pub division_time: Duration,
     /// Time of the learner's training.
     pub learner_time: Duration,
+}
+
+/// The region of a Fig. 8 calibration that could not be measured.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnmeasurableFigures {
+    /// The point asked for (file units: deg, or mm for R).
+    pub at: [f64; 3],
+    /// The region's id (`r0110…`).
+    pub region: String,
+    /// Its depth in the division.
+    pub depth: usize,
+    /// Its box (division-space units).
+    pub bounds: crate::division::Bounds,
+    /// The neighbours whose mean CEPs it takes; None when the division did not make it a
+    /// region of its own (the cap came first).
+    pub borrowed_from: Option<Vec<String>>,
 }
 
 /// How a CEP learner's training went.
@@ -423,6 +452,9 @@ pub enum CalibrationError {
     /// A model file could not be used.
     #[error(transparent)]
     Model(#[from] crate::model::ModelError),
+    /// A model without a region tree where one is needed.
+    #[error("the model is not a variable D-H model of this rig (no region tree with its CEPs)")]
+    NotVariable,
     /// A scenario file could not be used.
     #[error(transparent)]
     Scenario(#[from] crate::world::ScenarioError),

@@ -115,12 +115,13 @@ fn the_papers_sensors_follow_the_first_joints_coordinate() {
 }
 
 #[test]
-fn any_measurer_can_measure_and_an_unmeasurable_region_is_forgotten() {
+fn any_measurer_can_measure_and_an_unmeasurable_region_is_never_measured() {
     let sc = paper_scenario();
     let mut world = WorldMeasurer::of(&sc);
     let opts = CalibrationOptions {
         learner: LearnerKind::None,
         unmeasurable_at: Some([92.0, 75.0, -22.0]),
+        unmeasurable_depth: Some(2),
         ..coarse()
     };
     let source = Source::Measurer {
@@ -132,12 +133,17 @@ fn any_measurer_can_measure_and_an_unmeasurable_region_is_forgotten() {
     let Figures::Division(d) = &cal.figures else {
         panic!("no division figures");
     };
-    let (_, id) = d.unmeasurable.as_ref().expect("a forgotten region");
+    let u = d.unmeasurable.as_ref().expect("an unmeasurable region");
+    // q1 splits first (300° against 130° and 120°), then q2 (130/130 against 120/120 of q3):
+    // 92° is in the upper half of q1, 75° in the upper half of q2.
+    assert_eq!(u.region, "r11");
+    let neighbours = u.borrowed_from.as_ref().expect("its neighbours' CEPs");
+    assert_eq!(neighbours, &["r0", "r10"]);
     let text = cal.text();
     assert!(
-        text.starts_with(&format!(
-            "region {id} (containing 92,75,-22) treated as unmeasurable"
-        )),
+        text.starts_with(
+            "region r11 (depth 2, containing 92,75,-22) could not be measured: no measurement was taken inside it"
+        ),
         "{text}"
     );
     assert!(

@@ -2,10 +2,10 @@
 
 use super::{
     check_scenario_rig, design_basis, Calibrated, CalibrationError, CalibrationOptions,
-    DivisionFigures, Figures, LearnerFigures, Source,
+    DivisionFigures, Figures, LearnerFigures, Source, UnmeasurableFigures,
 };
 use crate::division::{
-    divide, forget_region, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
+    divide, Bounds, DivisionOptions, DivisionReport, DivisionSpace, MeasureError, Measurer, Mode,
 };
 use crate::identification::Observation;
 use crate::learners::{self, Learner};
@@ -60,7 +60,7 @@ pub(super) fn calibrate(
     opts.check()?;
     let mode_name = source.mode_name();
     let basis = design_basis(rig, opts);
-    let division = DivisionOptions {
+    let mut division = DivisionOptions {
         space: opts.space,
         accuracy_mm: opts.accuracy_mm,
         max_regions: opts.region_cap(),
@@ -70,6 +70,13 @@ pub(super) fn calibrate(
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();
+    let unmeasurable = match opts.unmeasurable_at {
+        Some(at) => Some(unmeasurable_region(
+            rig, &basis, &source, &division, opts, at,
+        )?),
+        None => None,
+    };
+    division.unmeasurable = unmeasurable.as_ref().map(|u| u.bounds);
     let mut world;
     let (mode, label) = match source {
         Source::Offline {
@@ -91,11 +98,8 @@ pub(super) fn calibrate(
         }
         Source::Measurer { measurer, label } => (Mode::Planning(measurer), label),
     };
-    let mut report = divide(rig, &basis, mode, &division, progress)?;
-    let unmeasurable = opts.unmeasurable_at.map(|p| {
-        let id = forget_region(&mut report.tree, &division_point(opts.space, p));
-        (p, id)
-    });
+    let report = divide(rig, &basis, mode, &division, progress)?;
+    let unmeasurable = unmeasurable.map(|u| u.after(&report));
     let division_time = t0.elapsed();
     let t1 = Instant::now();
     let scale = cep_scale(rig, &basis);
@@ -111,15 +115,50 @@ pub(super) fn calibrate(
         &scale,
     );
     let mut figures = figures(&report, opts, mode_name);
-    figures.unmeasurable = unmeasurable;
+    figures.unmeasurable = unmeasurable.map(Box::new);
     figures.learner = learner.as_ref().map(learner_figures);
     figures.division_time = division_time;
     figures.learner_time = t1.elapsed();
-    let model = model_file(rig, report, learner, opts, mode_name, label);
+    let region = figures.unmeasurable.as_ref().map(|u| u.bounds);
+    let model = model_file(rig, report, learner, opts, mode_name, label, region);
     Ok(Calibrated {
         model,
         figures: Figures::Division(figures),
     })
+}
+
+/// `model` (a variable D-H model of `rig`) with its learner replaced by one of `kind` trained on
+/// the same region tree from the same conventional start: seed 000's FCMAC-against-CMAC
+/// comparison on one division, no new measurement. `LearnerKind::None` drops the learner.
+pub fn with_learner(
+    model: &ModelFile,
+    rig: &Rig,
+    kind: learners::LearnerKind,
+    settings: &learners::LearnerSettings,
+) -> Result<ModelFile, CalibrationError> {
+    settings.check()?;
+    let ModelBody::Variable {
+        conventional, tree, ..
+    } = &model.model
+    else {
+        return Err(CalibrationError::NotVariable);
+    };
+    let path = std::path::Path::new("<model>");
+    let layout = crate::kinematics::Robot::layout(&rig.chain);
+    let basis = tree
+        .basis
+        .iter()
+        .map(|n| layout.find(n).and_then(|id| layout.index_of(id)))
+        .collect::<Option<Vec<usize>>>()
+        .ok_or(CalibrationError::NotVariable)?;
+    let start = crate::model::params_from_entries(rig, conventional, path)?;
+    let init: Vec<f64> = basis.iter().map(|&i| start.get(i)).collect();
+    let trained = learners::train(kind, settings, tree, &init, &cep_scale(rig, &basis));
+    let mut out = model.clone();
+    if let ModelBody::Variable { learner: l, .. } = &mut out.model {
+        *l = trained;
+    }
+    Ok(out)
 }
 
 /// The model file of a division and its learner.
@@ -130,6 +169,7 @@ fn model_file(
     opts: &CalibrationOptions,
     mode_name: &str,
     label: String,
+    unmeasurable: Option<Bounds>,
 ) -> ModelFile {
     let division = DivisionSummary {
         accuracy_mm: opts.accuracy_mm,
@@ -140,6 +180,7 @@ fn model_file(
         test_measurements: report.test_measurements,
         mode: mode_name.into(),
         design_poses: opts.design_poses,
+        unmeasurable,
     };
     ModelFile::new(
         rig,
@@ -216,6 +257,108 @@ fn learner_figures(l: &Learner) -> LearnerFigures {
     }
 }
 
+/// The unmeasurable region of a Fig. 8 calibration: the region of the division containing
+/// `at` (file units) at the depth asked for, or, without one, at the depth of the leaf that
+/// contains it in the same division made without it (a first division whose measurements are
+/// all dropped: only its shape is kept).
+fn unmeasurable_region(
+    rig: &Rig,
+    basis: &[usize],
+    source: &Source<'_>,
+    division: &DivisionOptions,
+    opts: &CalibrationOptions,
+    at: [f64; 3],
+) -> Result<UnmeasurableFigures, CalibrationError> {
+    let x = division_point(opts.space, at);
+    let full = DivisionSpace::new(rig, opts.space)
+        .map_err(crate::division::DivisionError::from)?
+        .full;
+    if !full.holds(&x) {
+        return Err(CalibrationError::Option {
+            option: "--unmeasurable-at",
+            reason: "lies outside the division space".into(),
+        });
+    }
+    let depth = match opts.unmeasurable_depth {
+        Some(d) => d,
+        None => depth_of_leaf_at(rig, basis, source, division, &x)?,
+    };
+    let (bounds, region) = Bounds::region_at(&full, &x, depth);
+    if depth == 0 || bounds.min_fraction(&full) < division.min_fraction {
+        return Err(CalibrationError::Option {
+            option: "--unmeasurable-depth",
+            reason: format!(
+                "{depth}: the region must be a part of the workspace (depth at least 1) that the division can reach (no narrower than 1/{:.0} of it)",
+                1.0 / division.min_fraction
+            ),
+        });
+    }
+    Ok(UnmeasurableFigures {
+        at,
+        region,
+        depth,
+        bounds,
+        borrowed_from: None,
+    })
+}
+
+/// The depth of the leaf containing `x` in the division of `source` made with `division`.
+fn depth_of_leaf_at(
+    rig: &Rig,
+    basis: &[usize],
+    source: &Source<'_>,
+    division: &DivisionOptions,
+    x: &[f64; 3],
+) -> Result<usize, CalibrationError> {
+    let mut world;
+    let mode = match source {
+        Source::Offline { observations, .. } => Mode::Offline(observations),
+        Source::Scenario(sc) => {
+            world = WorldMeasurer::of(sc);
+            Mode::Planning(&mut world)
+        }
+        Source::Measurer { .. } => {
+            return Err(CalibrationError::Option {
+                option: "--unmeasurable-at",
+                reason: "through a measurer (a session) needs --unmeasurable-depth: finding the region's depth would measure the whole division twice".into(),
+            })
+        }
+    };
+    let first = divide(rig, basis, mode, division, |_, _| {})?;
+    Ok(first.tree.root.leaf_at(x, &first.tree.full).id.len() - 1)
+}
+
+impl UnmeasurableFigures {
+    /// The figures once the division is made: the neighbours the region borrowed from.
+    fn after(mut self, report: &DivisionReport) -> Self {
+        self.borrowed_from = report
+            .tree
+            .unmeasurable()
+            .into_iter()
+            .find(|l| l.id == self.region)
+            .and_then(|l| l.borrowed_from.clone());
+        self
+    }
+
+    /// What `rigcal calibrate` prints about it.
+    pub fn text(&self) -> String {
+        let [a, b, c] = self.at;
+        match &self.borrowed_from {
+            Some(ids) => format!(
+                "region {} (depth {}, containing {a},{b},{c}) could not be measured: no measurement was taken inside it and none of its points reached any fit; without a learner it takes the mean CEPs of its {} neighbours ({})",
+                self.region,
+                self.depth,
+                ids.len(),
+                ids.join(" ")
+            ),
+            None => format!(
+                "region {} (depth {}, containing {a},{b},{c}) could not be measured: no measurement inside it; the division did not reach it as a region of its own (region cap), so it lies in a larger region fitted around it",
+                self.region, self.depth
+            ),
+        }
+    }
+}
+
 /// A division-space point from file units (deg for angles, mm for R).
 fn division_point(space: crate::division::Space, p: [f64; 3]) -> [f64; 3] {
     match space {
@@ -229,12 +372,8 @@ impl DivisionFigures {
     pub fn text(&self) -> String {
         use std::fmt::Write;
         let mut s = String::new();
-        if let Some((p, id)) = &self.unmeasurable {
-            let _ = writeln!(
-                s,
-                "region {id} (containing {},{},{}) treated as unmeasurable: its CEPs are dropped",
-                p[0], p[1], p[2]
-            );
+        if let Some(u) = &self.unmeasurable {
+            let _ = writeln!(s, "{}", u.text());
         }
         let _ = writeln!(
             s,
@@ -275,11 +414,8 @@ impl DivisionFigures {
 
     fn learner_line(&self) -> String {
         let t = self.learner_time.as_secs_f64();
-        let untrained = learners::TrainReport {
-            epochs: 0,
-            max_error: f64::NAN,
-            rms_error: f64::NAN,
-            converged: false,
+        let training = |r: &Option<learners::TrainReport>| {
+            r.map_or_else(|| "not trained".to_string(), |r| r.text())
         };
         match &self.learner {
             Some(LearnerFigures::Fcmac {
@@ -287,24 +423,18 @@ impl DivisionFigures {
                 c,
                 cells,
                 report,
-            }) => {
-                let r = report.unwrap_or(untrained);
-                format!(
-                    "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {} epochs, pattern error max {:.4} RMS {:.4} (mm/deg); {t:.2} s",
-                    r.epochs, r.max_error, r.rms_error
-                )
-            }
+            }) => format!(
+                "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {}; {t:.2} s",
+                training(report)
+            ),
             Some(LearnerFigures::Cmac {
                 layers,
                 cells,
                 report,
-            }) => {
-                let r = report.unwrap_or(untrained);
-                format!(
-                    "  CMAC: {layers} layers of {cells:?} cells; {} epochs, pattern error max {:.4} RMS {:.4}; {t:.2} s",
-                    r.epochs, r.max_error, r.rms_error
-                )
-            }
+            }) => format!(
+                "  CMAC: {layers} layers of {cells:?} cells; {}; {t:.2} s",
+                training(report)
+            ),
             None => "  no learner: compensation uses each region's CEPs".to_string(),
         }
     }

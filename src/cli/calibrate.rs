@@ -42,11 +42,18 @@ pub struct Args {
     /// Learner that generalises the region-wise CEPs.
     #[arg(long, value_enum, default_value_t = LearnerKind::Fcmac)]
     pub learner: LearnerKind,
-    /// Treat the region containing this point of the division space (q1,q2,q3 in degrees, or
-    /// R mm,azimuth deg,elevation deg) as unmeasurable: its CEPs are dropped after the division
-    /// and the learner must generalise there (seed 000 Fig. 8).
+    /// Make the region containing this point of the division space (q1,q2,q3 in degrees, or
+    /// R mm,azimuth deg,elevation deg) unmeasurable (seed 000 Fig. 8): no measurement is taken
+    /// inside it (offline: no recorded point inside it is used), so none reaches a fit. Without
+    /// a learner the region takes the mean CEPs of its neighbours; the learner generalises
+    /// there. `rigcal evaluate` reports the error inside it.
     #[arg(long, allow_hyphen_values = true, value_name = "A,B,C", value_parser = three_numbers)]
     pub unmeasurable_at: Option<[f64; 3]>,
+    /// The depth of that region in the division (0 is the whole workspace) [default: the depth
+    /// of the leaf containing the point in the division made without it, found by a first
+    /// division whose measurements are then dropped; a session needs the depth given].
+    #[arg(long, requires = "unmeasurable_at", value_name = "N")]
+    pub unmeasurable_depth: Option<usize>,
     #[command(flatten)]
     pub settings: CalibrationOptions,
     /// Where to write the model (JSON).
@@ -70,6 +77,7 @@ pub fn run(a: Args) -> Result<()> {
         accuracy_mm: a.accuracy_mm,
         learner: a.learner,
         unmeasurable_at: a.unmeasurable_at,
+        unmeasurable_depth: a.unmeasurable_depth,
         ..a.settings.clone()
     };
     let calibrated = match (&a.recording, &a.scenario, &a.session) {

@@ -1,32 +1,44 @@
 //! `rigcal demo`: the whole job on simulated devices, step by step through the library.
 //!
-//! 1. A dry-run session of seed 000's simulation (`sim/paper-sim.toml`) on the ideal-instrument
-//!    rig (conventions §2): plan, drivers and emulators on the virtual clock, every row on disk.
-//! 2. The variable D-H model (division, CEPs per region, FCMAC) from that recording.
-//! 3. The Fig. 6 and Fig. 7 paths: position error of the simulated arm uncalibrated, with the
-//!    conventional model, the regions' CEPs and the FCMAC; plots.
-//! 4. A shorter session on the real rig (`rigs/rv-m2.toml`, `sim/rig-realistic.toml`): the table's
+//! 1. Seed 000's simulations in the paper's regime (`sim/paper-fig6.toml`, conventions §3) on
+//!    the ideal-instrument rig (conventions §2), at the paper's settings: 0.1 mm demanded, 20
+//!    measurements per region, the region caps 110 / 130. Planning-mode divisions on the
+//!    simulated arm (it measures where the division asks), FCMAC, and along the paper's paths
+//!    the four cases: Fig. 6 (joint-space division), Fig. 7 (Cartesian division), Fig. 8 (Fig. 6
+//!    with one region on the path unmeasurable: nothing measured in it), and the CEP jumps of
+//!    regions, FCMAC and CMAC on one division; each figure beside the paper's.
+//! 2. A shorter session on the real rig (`rigs/rv-m2.toml`, `sim/rig-realistic.toml`): the table's
 //!    travel and the 15° pin rule at work (points dropped with reasons), registration,
 //!    identification, evaluation along a path inside the measurable workspace (the Fig. 6 path
 //!    cannot be measured there), and a diagnosis of what the geometric model leaves out.
 //!
-//! Everything goes to `--out`; `summary.txt` there repeats the closing table.
+//! Everything goes to `--out`; `summary.txt` there repeats the closing table and
+//! `summary.json` holds its figures.
 
-use crate::calibration::{self, rig_check, CalibrationOptions};
+use crate::calibration::{
+    self, rig_check, CalibrationOptions, FigureRun, MethodFigures, PaperFigure, PaperRegimeSummary,
+    PathFigures, Source,
+};
+use crate::division::Space;
 use crate::identification::Level;
 use crate::kinematics::Robot;
-use crate::model::ModelFile;
+use crate::learners::LearnerKind;
+use crate::model::{ModelBody, ModelFile};
 use crate::recording::{Recording, RegistrationInfo, SessionInfo};
 use crate::report::{mean_max_rows, PathResult, PathSpec};
 use crate::rig::Rig;
 use crate::session::{read_plan, write_plan, SessionOptions};
+use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
+use serde::Serialize;
 use std::path::{Path, PathBuf};
 
 const PAPER_RIG: &str = "rigs/rv-m2-ideal.toml";
-const PAPER_SCENARIO: &str = "sim/paper-sim.toml";
+const PAPER_SCENARIO: &str = "sim/paper-fig6.toml";
 const REAL_RIG: &str = "rigs/rv-m2.toml";
 const REAL_SCENARIO: &str = "sim/rig-realistic.toml";
+/// The point of Fig. 8's unmeasurable region: on the Fig. 6 path, half way along.
+const FIG8_POINT: [f64; 3] = [92.0, 75.0, -22.0];
 
 /// Arguments of `rigcal demo`.
 #[derive(Debug, clap::Args)]
@@ -35,18 +47,32 @@ pub struct Args {
     /// there are replaced on a new run).
     #[arg(long, default_value = "out/demo")]
     out: PathBuf,
-    /// Points of the paper-scenario session (the paper measures 2200).
-    #[arg(long, default_value_t = 2200)]
-    points: usize,
     /// Points of the session on the real rig's constraints.
     #[arg(long, default_value_t = 300)]
     rig_points: usize,
-    /// Accuracy the variable D-H model must reach in every region (mm).
-    #[arg(long, default_value_t = 0.02)]
+    /// Accuracy the variable D-H model must reach in every region (mm; the paper's 0.1).
+    #[arg(long, default_value_t = 0.1)]
     accuracy_mm: f64,
-    /// Seed of the plans and the learner.
+    /// Seed of the divisions, the plans and the learner.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+}
+
+/// What `summary.json` holds.
+#[derive(Debug, Serialize)]
+struct DemoSummary {
+    format: &'static str,
+    seed: u64,
+    wall_s: f64,
+    paper: PaperRegimeSummary,
+    rig: RigSummary,
+}
+
+/// The rig part of `summary.json`: the path measured by the rig itself.
+#[derive(Debug, Serialize)]
+struct RigSummary {
+    path: String,
+    methods: Vec<MethodFigures>,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -55,94 +81,191 @@ pub fn run(a: Args) -> Result<()> {
             bail!("{f} not found: run `rigcal demo` from the repository's top directory (it reads rigs/ and sim/)");
         }
     }
-    anyhow::ensure!(a.points >= 100, "--points must be at least 100");
     anyhow::ensure!(a.rig_points >= 60, "--rig-points must be at least 60");
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    for dir in ["paper", "rig"] {
-        clear_session_dir(&a.out.join(dir))?;
-    }
+    clear_session_dir(&a.out.join("rig"))?;
     let started = std::time::Instant::now();
     let paper = paper_steps(&a)?;
     let rig = rig_steps(&a)?;
+    let wall_s = started.elapsed().as_secs_f64();
     let mut summary = format!(
-        "rigcal demo summary (seed {}, {:.1} s wall)\npaper scenario, ideal instrument: true position error of the simulated arm, mean / max in mm\n",
+        "rigcal demo summary (seed {}, {wall_s:.1} s wall)\n{}",
         a.seed,
-        started.elapsed().as_secs_f64()
+        paper.text()
     );
-    for (name, results) in &paper {
-        summary.push_str(&mean_max_rows(name, results));
-    }
     summary.push_str("real rig: distance to target measured by the rig itself, mean / max in mm\n");
     summary.push_str(&mean_max_rows(&rig.0, &rig.1));
-    summary.push_str(&format!("files in {}: paper/, rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), paper-model.json, rig-model.json, rig-diagnosis.json, paper-plots/ and rig-plots/ (SVG), summary.txt\n", a.out.display()));
+    summary.push_str(&format!("files in {}: paper-fig6-model.json, paper-fig7-model.json, paper-fig8-model.json, paper-fig6-cmac-model.json, paper-plots/ (SVG, CSV), rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), rig-model.json, rig-diagnosis.json, rig-plots/ (SVG), summary.txt, summary.json\n", a.out.display()));
     heading("Summary");
     print!("{summary}");
     let file = a.out.join("summary.txt");
-    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))
+    std::fs::write(&file, &summary).with_context(|| format!("writing {}", file.display()))?;
+    let json = DemoSummary {
+        format: "rigcal-demo-summary",
+        seed: a.seed,
+        wall_s,
+        paper,
+        rig: RigSummary {
+            path: rig.0,
+            methods: rig.1.iter().map(|r| MethodFigures::of(r, &[])).collect(),
+        },
+    };
+    let file = a.out.join("summary.json");
+    std::fs::write(&file, serde_json::to_string_pretty(&json)? + "\n")
+        .with_context(|| format!("writing {}", file.display()))
 }
 
-/// Steps 1–3 on the paper's scenario; the results per path (by name).
-fn paper_steps(a: &Args) -> Result<Vec<(String, Vec<PathResult>)>> {
-    let out = |name: &str| a.out.join(name);
+/// Step 1: Figs. 6, 7 and 8 and the CEP jumps in the paper's regime.
+fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
     let rig = Rig::load(Path::new(PAPER_RIG))?;
-    heading("1. Dry-run session: seed 000's simulation on the ideal-instrument RV-M2");
-    dry_session(
-        PAPER_RIG,
-        PAPER_SCENARIO,
-        Plan::Points(a.points, a.seed),
-        &out("paper"),
-    )?;
-    heading("2. Variable D-H model from the recording: division, CEPs per region, FCMAC");
+    let sc = Scenario::load(Path::new(PAPER_SCENARIO), None)?;
     let opts = CalibrationOptions {
         accuracy_mm: a.accuracy_mm,
         seed: a.seed,
         ..Default::default()
     };
-    let model = out("paper-model.json");
-    super::calibrate::offline(&rig, &out("paper"), &opts)?
-        .model
-        .save(&model)?;
-    println!("model written to {}", model.display());
-    heading("3. Evaluation along the paper's paths (true simulated arm vs target)");
-    let paths = vec![
-        calibration::fig6_path(&rig, 101),
-        calibration::fig7_path(&rig, 101)?,
-    ];
+    heading(
+        "1. Seed 000's simulations in the paper's regime (sim/paper-fig6.toml, ideal instrument)",
+    );
+    let fig6_path = calibration::fig6_path(&rig, 101);
+    let fig6 = paper_model(a, &rig, &sc, "fig6", &opts)?;
+    let fig6_run = paper_run(a, PaperFigure::Fig6, &fig6, &fig6_path)?;
+    let cartesian = CalibrationOptions {
+        space: Space::Cartesian,
+        ..opts.clone()
+    };
+    let fig7 = paper_model(a, &rig, &sc, "fig7", &cartesian)?;
+    let fig7_run = paper_run(
+        a,
+        PaperFigure::Fig7,
+        &fig7,
+        &calibration::fig7_path(&rig, 101)?,
+    )?;
+    let fig8_opts = CalibrationOptions {
+        unmeasurable_at: Some(FIG8_POINT),
+        unmeasurable_depth: Some(leaf_depth_at(&fig6.0, &rig, FIG8_POINT)?),
+        ..opts.clone()
+    };
+    let fig8 = paper_model(a, &rig, &sc, "fig8", &fig8_opts)?;
+    let fig8_run = paper_run(a, PaperFigure::Fig8, &fig8, &fig6_path)?;
+    heading("The same Fig. 6 division with Albus's CMAC in place of the FCMAC");
+    let cmac = calibration::with_learner(&fig6.0, &rig, LearnerKind::Cmac, &opts.learner_settings)?;
+    let cmac_file = a.out.join("paper-fig6-cmac-model.json");
+    cmac.save(&cmac_file)?;
+    let cmac_path = evaluate_paper(a, &cmac_file, &fig6_path)?;
+    let jumps = ["regions", "fcmac"]
+        .iter()
+        .filter_map(|m| fig6_run.path.method(m))
+        .chain(cmac_path.method("cmac"))
+        .cloned()
+        .collect();
+    let share = sc
+        .world()
+        .error_split(&crate::world::fig6_path(101, rig.chain.dof()))
+        .share();
+    Ok(PaperRegimeSummary {
+        scenario: PAPER_SCENARIO.into(),
+        non_geometric_share: share,
+        accuracy_mm: opts.accuracy_mm,
+        per_region: opts.per_region,
+        runs: vec![fig6_run, fig7_run, fig8_run],
+        cep_jumps: jumps,
+    })
+}
+
+/// A planning-mode calibration on the paper's scenario, printed and saved as
+/// `paper-NAME-model.json`: the model and its file.
+fn paper_model(
+    a: &Args,
+    rig: &Rig,
+    sc: &Scenario,
+    name: &str,
+    opts: &CalibrationOptions,
+) -> Result<(ModelFile, PathBuf)> {
+    let file = a.out.join(format!("paper-{name}-model.json"));
+    println!(
+        "\n-- {name}: rigcal calibrate --scenario {PAPER_SCENARIO} --division {:?}",
+        opts.space
+    );
+    let c = calibration::calibrate(rig, Source::Scenario(sc), opts)?;
+    print!("{}", c.text());
+    c.model.save(&file)?;
+    println!("model written to {}", file.display());
+    Ok((c.model, file))
+}
+
+/// The run of `figure`: its model evaluated along `path`.
+fn paper_run(
+    a: &Args,
+    figure: PaperFigure,
+    model: &(ModelFile, PathBuf),
+    path: &PathSpec,
+) -> Result<FigureRun> {
+    let figures = evaluate_paper(a, &model.1, path)?;
+    FigureRun::of(figure, &model.0, figures).context("the paper's calibration made no division")
+}
+
+/// Evaluates the model file along `path` on the paper's scenario, plots into `paper-plots/`.
+fn evaluate_paper(a: &Args, model: &Path, path: &PathSpec) -> Result<PathFigures> {
     let traced = calibration::PAPER_TRACED_CEPS.map(String::from);
-    let plots = out("paper-plots");
-    let results = super::evaluate::evaluate(
-        &model,
+    let plots = a.out.join("paper-plots").join(
+        model
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    );
+    let mut f = super::evaluate::evaluate(
+        model,
         Path::new(PAPER_SCENARIO),
-        &paths,
+        std::slice::from_ref(path),
         &traced,
         Some(&plots),
     )?;
-    Ok(paths.into_iter().map(|p| p.name).zip(results).collect())
+    f.pop().context("no path evaluated")
 }
 
-/// Steps 4–7 on the real rig's constraints; the measured path's name and results.
+/// The depth of the leaf of `model`'s division containing `at` (file units).
+fn leaf_depth_at(model: &ModelFile, rig: &Rig, at: [f64; 3]) -> Result<usize> {
+    let ModelBody::Variable { tree, .. } = &model.model else {
+        bail!("the Fig. 6 model has no division");
+    };
+    let space = crate::division::DivisionSpace::new(rig, tree.space)?;
+    let q: Vec<f64> = rig
+        .held()
+        .iter()
+        .enumerate()
+        .map(|(j, h)| match j {
+            0..=2 => at[j].to_radians(),
+            _ => h.unwrap_or(0.0),
+        })
+        .collect();
+    let leaf = tree.root.leaf_at(&space.coords(&q), &tree.full);
+    Ok(leaf.id.len() - 1)
+}
+
+/// Steps 2–5 on the real rig's constraints; the measured path's name and results.
 fn rig_steps(a: &Args) -> Result<(String, Vec<PathResult>)> {
     let out = |name: &str| a.out.join(name);
     let rig = Rig::load(Path::new(REAL_RIG))?;
-    heading("4. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
+    heading("2. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
     dry_session(
         REAL_RIG,
         REAL_SCENARIO,
         Plan::Points(a.rig_points, a.seed),
         &out("rig"),
     )?;
-    heading("5. Conventional identification from the rig recording");
+    heading("3. Conventional identification from the rig recording");
     identify(&rig, &out("rig"), &out("rig-model.json"))?;
     let planned = read_plan(&out("rig").join("plan.csv"), &rig)?;
     let path = rig_check::measurable_path(&rig, &planned, 101).context(
         "no two planned points of the rig session are joined by a measurable straight joint path",
     )?;
     heading(&format!(
-        "6. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
+        "4. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
         path.name
     ));
     let results = rig_path_check(&rig, &out("rig-model.json"), &path, &a.out)?;
-    heading("7. Diagnosis: what the geometric model leaves out of the rig recording");
+    heading("5. Diagnosis: what the geometric model leaves out of the rig recording");
     diagnose(
         &rig,
         &out("rig"),
@@ -277,7 +400,7 @@ fn print_session(dir: &Path, r: &crate::session::SessionReport) {
     println!("rig time {:.0} s ({:.2} h) on the virtual clock: what the rig would have taken; wall time {:.2} s", r.rig_time_s, r.rig_time_s / 3600.0, r.wall.as_secs_f64());
 }
 
-/// Step 5: conventional identification as `rigcal identify` prints it (the demo's one call into
+/// Step 3: conventional identification as `rigcal identify` prints it (the demo's one call into
 /// the identification pipeline).
 fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
     use super::identify::{print_identification, write_model};
@@ -293,7 +416,7 @@ fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
     write_model(rig, &id, recording, out)
 }
 
-/// Step 7: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
+/// Step 5: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
 fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
     let rec = super::read_recording(rig, recording)?;
     let report = crate::diagnosis::diagnose(rig, &rec, &Default::default())

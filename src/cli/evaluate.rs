@@ -2,11 +2,11 @@
 //! every model a model file holds (conventional, regions, learner), with CEP traces and plots;
 //! see [`crate::calibration::evaluate`].
 
-use crate::calibration::{self, PathChoice, PathOptions, TracedCep};
+use crate::calibration::{self, PathChoice, PathFigures, PathOptions, TracedCep};
 use crate::model::ModelFile;
-use crate::report::{PathResult, PathSpec};
+use crate::report::PathSpec;
 use crate::world::Scenario;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal evaluate`.
@@ -38,6 +38,10 @@ pub struct Args {
     /// Directory for the plots (SVG) and a CSV of the errors.
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Also write the figures (per path and model: mean_mm, max_mm, failures, largest CEP
+    /// jumps; the error inside an unmeasurable region) as JSON to this file.
+    #[arg(long, value_name = "FILE")]
+    json: Option<PathBuf>,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -56,35 +60,54 @@ pub fn run(a: Args) -> Result<()> {
             seed: a.seed,
         },
     )?;
-    evaluate(
+    let figures = evaluate(
         &a.model,
         &a.scenario,
         &paths,
         &a.trace_ceps,
         a.out.as_deref(),
     )?;
+    if let Some(file) = &a.json {
+        let json = calibration::EvaluationJson {
+            format: "rigcal-evaluation",
+            model: a.model.display().to_string(),
+            scenario: a.scenario.display().to_string(),
+            paths: figures,
+        };
+        std::fs::write(file, serde_json::to_string_pretty(&json)? + "\n")
+            .with_context(|| format!("writing {}", file.display()))?;
+        println!("figures written to {}", file.display());
+    }
     Ok(())
 }
 
 /// Evaluates every model of the model file at `model` along `paths` in `scenario`'s truth,
-/// tracing `trace`, printing a table per path and, with `out`, writing plots and a CSV there.
+/// tracing `trace`, printing a table per path (and the error inside an unmeasurable region)
+/// and, with `out`, writing plots and a CSV there; the figures per path.
 pub(crate) fn evaluate(
     model: &Path,
     scenario: &Path,
     paths: &[PathSpec],
     trace: &[String],
     out: Option<&Path>,
-) -> Result<Vec<Vec<PathResult>>> {
+) -> Result<Vec<PathFigures>> {
     let loaded = ModelFile::load(model)?;
     let trace: Vec<TracedCep> = calibration::traced_ceps(&loaded.rig, trace)?;
     let scenario = Scenario::load(scenario, None)?;
     let all = calibration::evaluate(&loaded, model, &scenario, paths, &trace)?;
+    let mut figures = Vec::with_capacity(paths.len());
     for (path, results) in paths.iter().zip(&all) {
-        print!("{}", calibration::path_table(path, results, &trace));
+        let f = PathFigures::of(&loaded, path, results, &trace);
+        print!(
+            "{}{}",
+            calibration::path_table(path, results, &trace),
+            f.inside_text()
+        );
         if let Some(dir) = out {
             let files = calibration::write_path_files(dir, path, results, &trace)?;
             print!("{}", files.text());
         }
+        figures.push(f);
     }
-    Ok(all)
+    Ok(figures)
 }

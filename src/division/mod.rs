@@ -14,6 +14,7 @@
 //! CEPs, so directions a small region cannot see stay at the parent's values instead of
 //! wandering (the identifiable combinations are unaffected).
 
+pub mod design;
 mod planner;
 mod space;
 mod tree;
@@ -22,6 +23,4 @@ pub use planner::{
     divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
 };
 pub use space::{Bounds, DivisionSpace, Space};
-pub use tree::{
-    expand as tree_expand, forget_region, RegionModel, RegionNode, RegionTest, RegionTree,
-};
+pub use tree::{expand as tree_expand, RegionModel, RegionNode, RegionTest, RegionTree};

@@ -13,6 +13,7 @@
 //! measured − target. *Offline* mode works from a recording: a region uses the points that fall
 //! in it, every fifth held out to test (prediction error), all of them in its final fit.
 
+use super::design;
 use super::space::{Bounds, DivisionSpace, Space, SpaceError};
 use super::tree::{expand, RegionNode, RegionTest, RegionTree};
 use crate::compensation::{compensate_from, CompensationOptions};
@@ -73,7 +74,8 @@ pub struct DivisionOptions {
     pub max_regions: usize,
     /// Measurements per region.
     pub per_region: usize,
-    /// Test points per region (planning mode).
+    /// Test points per region (planning mode): its corners, its centre, then a Halton set
+    /// ([`super::design`]).
     pub test_points: usize,
     /// A region whose measurement locations cannot bring κ below this is not split.
     pub kappa_max: f64,
@@ -89,6 +91,11 @@ pub struct DivisionOptions {
     pub noise_mm: f64,
     /// Seed of every random choice.
     pub seed: u64,
+    /// A box of the division space that cannot be measured (seed 000 Fig. 8): no measurement
+    /// location or test point is chosen in it, no recorded point in it is used (offline), the
+    /// regions around it split until it is a region of its own, and that region takes the mean
+    /// CEPs of its neighbours. Give a region of the division ([`Bounds::region_at`]).
+    pub unmeasurable: Option<Bounds>,
 }
 
 impl Default for DivisionOptions {
@@ -98,7 +105,7 @@ impl Default for DivisionOptions {
             accuracy_mm: 0.1,
             max_regions: 110,
             per_region: 20,
-            test_points: 10,
+            test_points: 27,
             kappa_max: 1e10,
             min_fraction: 1.0 / 64.0,
             candidates: 60,
@@ -106,6 +113,7 @@ impl Default for DivisionOptions {
             prior_sigma: (0.5, 0.1f64.to_radians()),
             noise_mm: 0.02,
             seed: 1,
+            unmeasurable: None,
         }
     }
 }
@@ -193,18 +201,10 @@ pub fn divide(
                 let x = ctx.space.coords(&o.q);
                 (o, x)
             })
+            .filter(|(_, x)| !ctx.excluded(x))
             .collect();
     }
-    let mut root = RegionNode {
-        id: "r".into(),
-        bounds: full,
-        cep: None,
-        kappa: f64::INFINITY,
-        measurements: 0,
-        test: None,
-        note: None,
-        children: Vec::new(),
-    };
+    let mut root = RegionNode::unidentified("r".into(), full);
     ctx.populate(&root.bounds, ctx.opts.per_region.max(3 * basis.len()))?;
     match ctx.identify(&root.bounds, None) {
         Ok((cep, kappa, n)) => {
@@ -223,7 +223,7 @@ pub fn divide(
     let mut leaves = 1;
     progress(leaves, opts.max_regions);
     while leaves < opts.max_regions {
-        let Some(path) = worst_failing_leaf(&root, opts.accuracy_mm) else {
+        let Some(path) = next_to_split(&root, opts.accuracy_mm, opts.unmeasurable.as_ref()) else {
             break;
         };
         let node = node_at_mut(&mut root, &path);
@@ -242,6 +242,7 @@ pub fn divide(
             leaf.note = Some(format!("region cap of {} reached", opts.max_regions));
         }
     }
+    borrow_neighbour_ceps(&mut root);
     let all: Vec<Observation> = ctx.data.iter().map(|(o, _)| o.clone()).collect();
     let conventional = fit(
         &rig.chain,
@@ -272,32 +273,77 @@ pub fn divide(
     })
 }
 
-fn worst_failing_leaf(root: &RegionNode, accuracy: f64) -> Option<Vec<usize>> {
+/// The leaf to split next: one that holds the unmeasurable box as a part (its test could not
+/// look there, so it cannot be accepted until the box is a region of its own), else the failing
+/// leaf with the worst test error.
+fn next_to_split(
+    root: &RegionNode,
+    accuracy: f64,
+    unmeasurable: Option<&Bounds>,
+) -> Option<Vec<usize>> {
     fn walk(
         n: &RegionNode,
         path: &mut Vec<usize>,
-        accuracy: f64,
+        judge: &dyn Fn(&RegionNode) -> Option<f64>,
         best: &mut Option<(f64, Vec<usize>)>,
     ) {
         if n.is_leaf() {
-            if n.note.is_none() {
-                if let Some(t) = n.test {
-                    if t.max_mm > accuracy && best.as_ref().is_none_or(|(e, _)| t.max_mm > *e) {
-                        *best = Some((t.max_mm, path.clone()));
-                    }
+            if let Some(e) = judge(n) {
+                if best.as_ref().is_none_or(|(b, _)| e > *b) {
+                    *best = Some((e, path.clone()));
                 }
             }
             return;
         }
         for (i, c) in n.children.iter().enumerate() {
             path.push(i);
-            walk(c, path, accuracy, best);
+            walk(c, path, judge, best);
             path.pop();
         }
     }
+    let judge = |n: &RegionNode| -> Option<f64> {
+        if n.note.is_some() {
+            return None;
+        }
+        if unmeasurable.is_some_and(|u| n.bounds.encloses(u) && n.bounds != *u) {
+            return Some(f64::INFINITY);
+        }
+        n.test.map(|t| t.max_mm).filter(|&e| e > accuracy)
+    };
     let mut best = None;
-    walk(root, &mut Vec::new(), accuracy, &mut best);
+    walk(root, &mut Vec::new(), &judge, &mut best);
     best.map(|(_, p)| p)
+}
+
+/// Gives every unmeasurable leaf the mean CEPs of the measured leaves that share a face with
+/// it (seed 000 section 6: "average CEPs derived from CEPs for neighbouring local regions").
+fn borrow_neighbour_ceps(root: &mut RegionNode) {
+    let measured: Vec<(String, Bounds, Vec<f64>)> = root
+        .leaves()
+        .into_iter()
+        .filter(|l| l.is_measured())
+        .filter_map(|l| Some((l.id.clone(), l.bounds, l.cep.clone()?)))
+        .collect();
+    for leaf in leaves_mut(root) {
+        if leaf.borrowed_from.is_none() {
+            continue;
+        }
+        let near: Vec<&(String, Bounds, Vec<f64>)> = measured
+            .iter()
+            .filter(|(_, b, _)| b.shares_face(&leaf.bounds))
+            .collect();
+        let Some(first) = near.first() else {
+            continue;
+        };
+        let mut mean = vec![0.0; first.2.len()];
+        for (_, _, cep) in &near {
+            for (m, v) in mean.iter_mut().zip(cep) {
+                *m += v / near.len() as f64;
+            }
+        }
+        leaf.cep = Some(mean);
+        leaf.borrowed_from = Some(near.iter().map(|(id, _, _)| id.clone()).collect());
+    }
 }
 
 fn node_at_mut<'n>(root: &'n mut RegionNode, path: &[usize]) -> &'n mut RegionNode {
@@ -317,6 +363,25 @@ fn leaves_mut(n: &mut RegionNode) -> Vec<&mut RegionNode> {
 }
 
 impl Ctx<'_, '_> {
+    /// True for a point of the unmeasurable box.
+    fn excluded(&self, x: &[f64; 3]) -> bool {
+        self.opts.unmeasurable.is_some_and(|u| u.holds(x))
+    }
+
+    /// [`DivisionSpace::pose_at`], never inside the unmeasurable box.
+    fn pose_at(&mut self, b: &Bounds, x: &[f64; 3], seed: Option<&[f64]>) -> Option<Vec<f64>> {
+        let q = self.space.pose_at(b, x, &mut self.rng, seed)?;
+        (!self.excluded(&self.space.coords(&q))).then_some(q)
+    }
+
+    /// [`DivisionSpace::sample`], never inside the unmeasurable box.
+    fn sample(&mut self, b: &Bounds, tries: usize, seed: Option<&[f64]>) -> Option<Vec<f64>> {
+        (0..tries).find_map(|_| {
+            let q = self.space.sample(b, &mut self.rng, 1, seed)?;
+            (!self.excluded(&self.space.coords(&q))).then_some(q)
+        })
+    }
+
     fn in_box(&self, b: &Bounds) -> Vec<&(Observation, [f64; 3])> {
         self.data
             .iter()
@@ -353,12 +418,8 @@ impl Ctx<'_, '_> {
     /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, keep
     /// κ of eq. (4) small (random start, then exchanges that lower κ).
     fn select(&mut self, b: &Bounds, existing: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
-        let mut pool = Vec::new();
-        for _ in 0..self.opts.candidates.max(n) {
-            if let Some(q) = self.space.sample(b, &mut self.rng, 20) {
-                pool.push(q);
-            }
-        }
+        let pool = self.candidate_pool(b, self.opts.candidates.max(n));
+        let mut pool = pool;
         if pool.len() <= n {
             return pool;
         }
@@ -397,6 +458,36 @@ impl Ctx<'_, '_> {
             }
         }
         chosen.into_iter().map(|i| pool[i].clone()).collect()
+    }
+
+    /// Measurable candidate locations in `b`: the box's corners, then a Halton set from a
+    /// random offset ([`design::candidate_design`]); a location that cannot be measured is
+    /// replaced by one drawn at random.
+    fn candidate_pool(&mut self, b: &Bounds, n: usize) -> Vec<Vec<f64>> {
+        let offset = self.rng.random_range(0..1u64 << 20);
+        let seed = self.box_seed(b);
+        let seed = seed.as_deref();
+        let mut pool = Vec::with_capacity(n);
+        for u in design::candidate_design(n, offset) {
+            let q = self
+                .pose_at(b, &b.at_unit(&u), seed)
+                .or_else(|| self.sample(b, 3, seed));
+            pool.extend(q);
+        }
+        pool
+    }
+
+    /// A pose of box `b` for the inverse kinematics of Cartesian locations to start from: a
+    /// measurement already in it, else the pose of its centre (None in joint space, which
+    /// needs none).
+    fn box_seed(&mut self, b: &Bounds) -> Option<Vec<f64>> {
+        if self.space.space == Space::Joint {
+            return None;
+        }
+        if let Some((o, _)) = self.in_box(b).first() {
+            return Some(o.q.clone());
+        }
+        self.pose_at(b, &b.centre(), None)
     }
 
     fn prior(&self, parent: &[f64]) -> Prior {
@@ -491,28 +582,48 @@ impl Ctx<'_, '_> {
 
     fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Result<Vec<f64>, MeasureError> {
         let model = expand(self.basis, self.n_params, cep);
-        let nominal = ErrorParams::zeros(self.rig.chain.layout());
-        let opts = CompensationOptions::default();
         let mut errors = Vec::new();
-        for _ in 0..self.opts.test_points {
-            let Some(q) = self.space.sample(b, &mut self.rng, 20) else {
-                continue;
-            };
-            let target = self.rig.chain.position(&q, &nominal);
-            let Ok(c) =
-                compensate_from(&self.rig.chain, &model, &target, self.rig.held(), q, &opts)
-            else {
+        for u in design::test_design(self.opts.test_points) {
+            let Some((target, command)) = self.test_command(b, &u, &model) else {
                 continue;
             };
             let Mode::Planning(m) = &mut self.mode else {
                 break;
             };
             self.tests_made += 1;
-            if let Some(o) = m.measure(&c.command)? {
+            if let Some(o) = m.measure(&command)? {
                 errors.push((o.p - target).norm());
             }
         }
         Ok(errors)
+    }
+
+    /// The target at test location `u` (unit-cube coordinates of `b`) and the command that
+    /// compensates it with `model`; a location whose pose cannot be measured or whose
+    /// compensated command leaves the joint limits (at the workspace's faces) moves towards the
+    /// centre until it can.
+    fn test_command(
+        &mut self,
+        b: &Bounds,
+        u: &[f64; 3],
+        model: &ErrorParams,
+    ) -> Option<(nalgebra::Vector3<f64>, Vec<f64>)> {
+        let nominal = ErrorParams::zeros(self.rig.chain.layout());
+        let opts = CompensationOptions::default();
+        let seed = self.box_seed(b);
+        for f in [1.0, 0.9, 0.75, 0.5] {
+            let x = b.at_unit(&design::towards_centre(u, f));
+            let Some(q) = self.pose_at(b, &x, seed.as_deref()) else {
+                continue;
+            };
+            let target = self.rig.chain.position(&q, &nominal);
+            if let Ok(c) =
+                compensate_from(&self.rig.chain, model, &target, self.rig.held(), q, &opts)
+            {
+                return Some((target, c.command));
+            }
+        }
+        None
     }
 
     fn offline_test(&self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
@@ -547,21 +658,21 @@ impl Ctx<'_, '_> {
         let parent = node.cep.clone();
         let mut children = Vec::new();
         for (k, bounds) in [a, b].into_iter().enumerate() {
+            let mut child = RegionNode::unidentified(format!("{}{k}", node.id), bounds);
+            if self.opts.unmeasurable.is_some_and(|u| u.encloses(&bounds)) {
+                child.note = Some("unmeasurable: no measurement inside it".into());
+                child.borrowed_from = Some(Vec::new());
+                children.push(child);
+                continue;
+            }
             self.populate(&bounds, self.opts.per_region)
                 .map_err(SplitError::Measure)?;
             let (cep, kappa, n) = self
                 .identify(&bounds, parent.as_deref())
                 .map_err(SplitError::Cannot)?;
-            let mut child = RegionNode {
-                id: format!("{}{k}", node.id),
-                bounds,
-                cep: Some(cep),
-                kappa,
-                measurements: n,
-                test: None,
-                note: None,
-                children: Vec::new(),
-            };
+            child.cep = Some(cep);
+            child.kappa = kappa;
+            child.measurements = n;
             child.test = self.test(&child).map_err(SplitError::Measure)?;
             children.push(child);
         }

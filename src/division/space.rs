@@ -85,6 +85,50 @@ impl Bounds {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// The region of depth `depth` of a division of `full` that contains `x`, with its id (`r`,
+    /// `r0`, `r01`, …): every split halves its region across the widest dimension, so the
+    /// regions containing a point depend on the geometry alone, not on the measurements.
+    pub fn region_at(full: &Bounds, x: &[f64; 3], depth: usize) -> (Bounds, String) {
+        let mut b = *full;
+        let mut id = String::from("r");
+        for _ in 0..depth {
+            let (lo, hi) = b.halves(b.widest(full));
+            if lo.contains(x, full) {
+                b = lo;
+                id.push('0');
+            } else {
+                b = hi;
+                id.push('1');
+            }
+        }
+        (b, id)
+    }
+
+    /// True when `other` lies inside this box (faces may coincide).
+    pub fn encloses(&self, other: &Bounds) -> bool {
+        (0..3).all(|k| self.lo[k] <= other.lo[k] + 1e-12 && other.hi[k] <= self.hi[k] + 1e-12)
+    }
+
+    /// True when the two boxes share part of a face: they touch across one dimension and
+    /// overlap (with positive width) in the other two.
+    pub fn shares_face(&self, other: &Bounds) -> bool {
+        let touch = |k: usize| {
+            (self.hi[k] - other.lo[k]).abs() < 1e-12 || (other.hi[k] - self.lo[k]).abs() < 1e-12
+        };
+        let overlap = |k: usize| self.lo[k].max(other.lo[k]) < self.hi[k].min(other.hi[k]) - 1e-12;
+        (0..3).any(|k| touch(k) && (0..3).filter(|&j| j != k).all(overlap))
+    }
+
+    /// True when `x` lies in the box, every face closed.
+    pub fn holds(&self, x: &[f64; 3]) -> bool {
+        (0..3).all(|k| x[k] >= self.lo[k] && x[k] <= self.hi[k])
+    }
+
+    /// The point at unit-cube coordinates `u` (each in 0..=1) of the box.
+    pub fn at_unit(&self, u: &[f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| self.lo[k] + u[k] * (self.hi[k] - self.lo[k]))
+    }
+
     /// The centre.
     pub fn centre(&self) -> [f64; 3] {
         [
@@ -183,50 +227,71 @@ impl DivisionSpace {
         }
     }
 
-    /// A pose in box `b` drawn at random, measurable on the rig, or None after `tries` attempts.
+    /// A pose in box `b` drawn at random, measurable on the rig, or None after `tries` attempts;
+    /// `seed` as for [`Self::pose_at`].
     pub fn sample<R: RngExt + ?Sized>(
         &self,
         b: &Bounds,
         rng: &mut R,
         tries: usize,
+        seed: Option<&[f64]>,
+    ) -> Option<Vec<f64>> {
+        (0..tries).find_map(|_| {
+            let x: [f64; 3] = std::array::from_fn(|k| rng.random_range(b.lo[k]..=b.hi[k]));
+            self.pose_at(b, &x, rng, seed)
+        })
+    }
+
+    /// A measurable pose whose coordinates are `x`, inside box `b`, or None (no inverse
+    /// kinematics for a Cartesian point, not measurable on the rig, or outside `b`). Joints that
+    /// are neither major nor held are drawn from `rng`. In Cartesian space the inverse
+    /// kinematics starts from `seed` (a pose of the same region), so a region's poses share one
+    /// arm configuration (seed 000 section 4.2: one configuration per Cartesian division) and
+    /// few starts are needed.
+    pub fn pose_at<R: RngExt + ?Sized>(
+        &self,
+        b: &Bounds,
+        x: &[f64; 3],
+        rng: &mut R,
+        seed: Option<&[f64]>,
     ) -> Option<Vec<f64>> {
         let joints = self.rig.chain.joints();
         let held = self.rig.held();
-        for _ in 0..tries {
-            let x: [f64; 3] = std::array::from_fn(|k| rng.random_range(b.lo[k]..=b.hi[k]));
-            let q = match self.space {
-                Space::Joint => {
-                    let mut q: Vec<f64> = joints
-                        .iter()
-                        .enumerate()
-                        .map(|(j, s)| held[j].unwrap_or_else(|| rng.random_range(s.min..=s.max)))
-                        .collect();
-                    for (k, &m) in self.major.iter().enumerate() {
-                        q[m] = x[k];
-                    }
-                    q
+        let q = match self.space {
+            Space::Joint => {
+                let mut q: Vec<f64> = joints
+                    .iter()
+                    .enumerate()
+                    .map(|(j, s)| held[j].unwrap_or_else(|| rng.random_range(s.min..=s.max)))
+                    .collect();
+                for (k, &m) in self.major.iter().enumerate() {
+                    q[m] = x[k];
                 }
-                Space::Cartesian => {
-                    let p = self.spherical.to_world(&Spherical {
-                        r: x[0],
-                        azimuth: x[1],
-                        elevation: x[2],
-                    });
-                    let opts = IkOptions {
+                q
+            }
+            Space::Cartesian => {
+                let p = self.spherical.to_world(&Spherical {
+                    r: x[0],
+                    azimuth: x[1],
+                    elevation: x[2],
+                });
+                // From a seed in the region a reachable point converges in a few steps; an
+                // unreachable one (a spherical box reaches beyond the arm) is given up early.
+                let opts = match seed {
+                    Some(_) => IkOptions {
+                        max_starts: 3,
+                        max_iterations: 25,
+                        ..IkOptions::default()
+                    },
+                    None => IkOptions {
                         max_starts: 8,
                         ..IkOptions::default()
-                    };
-                    match solve_position_ik(&self.world, &self.nominal, &p, held, None, &opts) {
-                        Ok(q) => q,
-                        Err(_) => continue,
-                    }
-                }
-            };
-            if self.rig.measurable(&q).is_ok() && b.contains(&self.coords(&q), &self.full) {
-                return Some(q);
+                    },
+                };
+                solve_position_ik(&self.world, &self.nominal, &p, held, seed, &opts).ok()?
             }
-        }
-        None
+        };
+        (self.rig.measurable(&q).is_ok() && b.contains(&self.coords(&q), &self.full)).then_some(q)
     }
 }
 

@@ -25,7 +25,9 @@ pub struct RegionNode {
     pub bounds: Bounds,
     /// CEPs (internal units, basis order); None for a region without usable measurements.
     pub cep: Option<Vec<f64>>,
-    /// κ of eq. (4) of the region's identification.
+    /// κ of eq. (4) of the region's identification; infinite (`null` in a file) for a region
+    /// never identified.
+    #[serde(deserialize_with = "null_is_infinite")]
     pub kappa: f64,
     /// Measurements used.
     pub measurements: usize,
@@ -34,15 +36,45 @@ pub struct RegionNode {
     /// Why the region was not split further, when it missed the accuracy.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub note: Option<String>,
+    /// For a region that could not be measured (seed 000 Fig. 8): the neighbouring regions
+    /// whose CEPs it takes the mean of. No measurement lies inside it, and learners are not
+    /// trained on it: they generalise there.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub borrowed_from: Option<Vec<String>>,
     /// The two halves, once split.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub children: Vec<RegionNode>,
 }
 
+/// JSON has no infinity: serde_json writes it as `null`, read back here as infinite.
+fn null_is_infinite<'de, D: serde::Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::INFINITY))
+}
+
 impl RegionNode {
+    /// A region with no CEPs yet.
+    pub fn unidentified(id: String, bounds: Bounds) -> Self {
+        Self {
+            id,
+            bounds,
+            cep: None,
+            kappa: f64::INFINITY,
+            measurements: 0,
+            test: None,
+            note: None,
+            borrowed_from: None,
+            children: Vec::new(),
+        }
+    }
+
     /// True for a leaf.
     pub fn is_leaf(&self) -> bool {
         self.children.is_empty()
+    }
+
+    /// True for a region whose CEPs were identified from its own measurements.
+    pub fn is_measured(&self) -> bool {
+        self.cep.is_some() && self.borrowed_from.is_none()
     }
 
     /// The leaves below (or this node).
@@ -103,23 +135,15 @@ impl RegionTree {
     pub fn leaf_count(&self) -> usize {
         self.root.leaves().len()
     }
-}
 
-/// Drops the CEPs of the leaf containing `x`, as if it could not be measured; compensation then
-/// falls back to the nearest ancestor's CEPs and a learner must generalise. Returns the leaf's id.
-pub fn forget_region(tree: &mut RegionTree, x: &[f64; 3]) -> String {
-    let full = tree.full;
-    let mut node = &mut tree.root;
-    while let Some(k) = node
-        .children
-        .iter()
-        .position(|c| c.bounds.contains(x, &full))
-    {
-        node = &mut node.children[k];
+    /// The leaves that could not be measured (seed 000 Fig. 8).
+    pub fn unmeasurable(&self) -> Vec<&RegionNode> {
+        self.root
+            .leaves()
+            .into_iter()
+            .filter(|l| l.borrowed_from.is_some())
+            .collect()
     }
-    node.cep = None;
-    node.note = Some("unmeasurable".into());
-    node.id.clone()
 }
 
 /// A region tree as an error model: the CEPs of the region a pose falls in.

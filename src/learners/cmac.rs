@@ -6,7 +6,7 @@
 //! any layer's cell changes. Training is the LMS rule w ← w + β·(y − P)/layers on every excited
 //! cell. Weights start at `init` (the conventional CEPs).
 
-use super::{Pattern, TrainReport};
+use super::{Pattern, Progress, TrainReport};
 use crate::division::Bounds;
 use serde::{Deserialize, Serialize};
 
@@ -110,13 +110,9 @@ impl Cmac {
     /// Trains with the LMS rule until every output is within tolerance.
     pub fn train(&mut self, patterns: &[Pattern]) -> TrainReport {
         let excited: Vec<Vec<usize>> = patterns.iter().map(|p| self.excited(&p.x)).collect();
-        let mut report = TrainReport {
-            epochs: 0,
-            max_error: f64::INFINITY,
-            rms_error: f64::INFINITY,
-            converged: false,
-        };
-        for epoch in 1..=self.config.max_epochs {
+        let mut progress = Progress::new(self.config.tolerance, self.config.max_epochs);
+        let mut report = progress.untrained();
+        for _ in 0..self.config.max_epochs {
             for (p, cells) in patterns.iter().zip(&excited) {
                 let y = self.respond(cells);
                 let step: Vec<f64> =
@@ -143,13 +139,9 @@ impl Cmac {
                     n += 1;
                 }
             }
-            report = TrainReport {
-                epochs: epoch,
-                max_error: max,
-                rms_error: (sq / n.max(1) as f64).sqrt(),
-                converged: max <= self.config.tolerance,
-            };
-            if report.converged {
+            let (r, stop) = progress.epoch(max, (sq / n.max(1) as f64).sqrt());
+            report = r;
+            if stop {
                 break;
             }
         }

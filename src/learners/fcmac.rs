@@ -9,12 +9,13 @@
 //!   Optional hash coding folds the cells into a smaller table.
 //! * Response: centroid defuzzification P = Σ μ·w / Σ μ (A4).
 //! * Training: w ← w + β·μ·(CEP − CEP′) for every excited cell (A5), pattern by pattern,
-//!   until every output is within the tolerance ε or the epoch cap.
+//!   until every output is within the tolerance ε, the error stops falling, or the epoch cap;
+//!   the [`TrainReport`] says which.
 //!
 //! Weights start at `init` (the conventional CEPs), so cells no pattern reaches — an
 //! unmeasurable region far from any measured one — answer with the whole-workspace CEPs.
 
-use super::{Pattern, TrainReport};
+use super::{Pattern, Progress, TrainReport};
 use crate::division::Bounds;
 use serde::{Deserialize, Serialize};
 
@@ -88,6 +89,37 @@ impl Fcmac {
         }
     }
 
+    /// A network over `range` whose unhashed association cells start at `start` of the point
+    /// their sensors centre on (a hashed network starts every cell at `init`, as [`Self::new`]).
+    pub fn starting_at(
+        config: FcmacConfig,
+        range: Bounds,
+        init: &[f64],
+        start: impl Fn(&[f64; 3]) -> Vec<f64>,
+    ) -> Self {
+        let mut f = Self::new(config, range, init);
+        if f.config.hash_size.is_some() {
+            return f;
+        }
+        let [n0, n1, n2] = f.config.cells;
+        let centre = |d: usize, i: usize| {
+            let n = f.config.cells[d];
+            range.lo[d] + (range.hi[d] - range.lo[d]) * i as f64 / (n - 1).max(1) as f64
+        };
+        for i in 0..n0 {
+            for j in 0..n1 {
+                for k in 0..n2 {
+                    let w = start(&[centre(0, i), centre(1, j), centre(2, k)]);
+                    let cell = (i * n1 + j) * n2 + k;
+                    if w.len() == f.outputs {
+                        f.weights[cell * f.outputs..(cell + 1) * f.outputs].copy_from_slice(&w);
+                    }
+                }
+            }
+        }
+        f
+    }
+
     /// Number of association cells.
     pub fn cell_count(&self) -> usize {
         self.weights.len() / self.outputs.max(1)
@@ -159,13 +191,9 @@ impl Fcmac {
     /// Trains on the patterns with (A5) until every output is within tolerance.
     pub fn train(&mut self, patterns: &[Pattern]) -> TrainReport {
         let excited: Vec<Vec<(usize, f64)>> = patterns.iter().map(|p| self.excited(&p.x)).collect();
-        let mut report = TrainReport {
-            epochs: 0,
-            max_error: f64::INFINITY,
-            rms_error: f64::INFINITY,
-            converged: false,
-        };
-        for epoch in 1..=self.config.max_epochs {
+        let mut progress = Progress::new(self.config.tolerance, self.config.max_epochs);
+        let mut report = progress.untrained();
+        for _ in 0..self.config.max_epochs {
             for (p, cells) in patterns.iter().zip(&excited) {
                 let y = self.respond(cells);
                 let diff: Vec<f64> = p.y.iter().zip(&y).map(|(t, o)| t - o).collect();
@@ -177,13 +205,9 @@ impl Fcmac {
                 }
             }
             let (max, rms) = self.errors(patterns, &excited);
-            report = TrainReport {
-                epochs: epoch,
-                max_error: max,
-                rms_error: rms,
-                converged: max <= self.config.tolerance,
-            };
-            if report.converged {
+            let (r, stop) = progress.epoch(max, rms);
+            report = r;
+            if stop {
                 break;
             }
         }

@@ -24,17 +24,111 @@ pub struct Pattern {
     pub y: Vec<f64>,
 }
 
-/// How training went.
+/// How training went: whether the network reached the tolerance ε on every pattern (the
+/// paper's "DIF within tolerance", appendix eq. (A5)), what it reached, and after how many
+/// epochs. Stored in the model file with the network.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TrainReport {
     /// Epochs run.
     pub epochs: usize,
-    /// Largest |desired − produced| over patterns and outputs at the end.
+    /// Largest |desired − produced| over patterns and outputs at the end (output units: mm
+    /// for lengths, degrees for angles).
     pub max_error: f64,
     /// RMS of the same.
     pub rms_error: f64,
-    /// Whether the tolerance was reached.
+    /// Whether every output of every pattern is within the tolerance.
     pub converged: bool,
+    /// The tolerance ε (output units); 0 in files written before it was recorded.
+    #[serde(default)]
+    pub tolerance: f64,
+    /// The epoch cap.
+    #[serde(default)]
+    pub max_epochs: usize,
+    /// Training stopped before the cap because the RMS error no longer fell: region-wise
+    /// CEPs jump at region boundaries, and a smooth network cannot follow a jump to within ε.
+    #[serde(default)]
+    pub stalled: bool,
+}
+
+impl TrainReport {
+    /// One line: reached or not, what it reached, after how many epochs.
+    pub fn text(&self) -> String {
+        let reached = format!(
+            "pattern error max {:.4}, RMS {:.4} (mm or deg) after {} epochs",
+            self.max_error, self.rms_error, self.epochs
+        );
+        if self.converged {
+            format!("reached ε = {}: {reached}", self.tolerance)
+        } else if self.stalled {
+            format!(
+                "did not reach ε = {}: {reached}, where the error stopped falling (the CEPs jump at region boundaries)",
+                self.tolerance
+            )
+        } else {
+            format!(
+                "did not reach ε = {}: {reached}, the epoch cap",
+                self.tolerance
+            )
+        }
+    }
+}
+
+/// Relative fall of the RMS error over [`STALL_EPOCHS`] epochs below which training stops.
+const STALL_FALL: f64 = 1e-3;
+/// Epochs the stall test looks back.
+const STALL_EPOCHS: usize = 5;
+
+/// Follows a training run epoch by epoch and decides when it stops: the tolerance reached, the
+/// error no longer falling, or the epoch cap.
+pub(crate) struct Progress {
+    tolerance: f64,
+    max_epochs: usize,
+    rms: Vec<f64>,
+}
+
+impl Progress {
+    /// A run with tolerance ε and an epoch cap.
+    pub(crate) fn new(tolerance: f64, max_epochs: usize) -> Self {
+        Self {
+            tolerance,
+            max_epochs,
+            rms: Vec::new(),
+        }
+    }
+
+    /// Records an epoch's (max, RMS) error; returns the report and whether to stop.
+    pub(crate) fn epoch(&mut self, max_error: f64, rms_error: f64) -> (TrainReport, bool) {
+        self.rms.push(rms_error);
+        let epochs = self.rms.len();
+        let converged = max_error <= self.tolerance;
+        let stalled = !converged
+            && epochs > STALL_EPOCHS
+            && self.rms[epochs - 1 - STALL_EPOCHS] - rms_error
+                <= STALL_FALL * self.rms[epochs - 1 - STALL_EPOCHS];
+        let report = TrainReport {
+            epochs,
+            max_error,
+            rms_error,
+            converged,
+            tolerance: self.tolerance,
+            max_epochs: self.max_epochs,
+            stalled: stalled && epochs < self.max_epochs,
+        };
+        (report, converged || stalled || epochs >= self.max_epochs)
+    }
+
+    /// The report of a run with no epoch (no patterns, or a cap of zero).
+    pub(crate) fn untrained(&self) -> TrainReport {
+        TrainReport {
+            epochs: 0,
+            max_error: f64::NAN,
+            rms_error: f64::NAN,
+            converged: false,
+            tolerance: self.tolerance,
+            max_epochs: self.max_epochs,
+            stalled: false,
+        }
+    }
 }
 
 /// A trained learner.
@@ -59,7 +153,8 @@ impl Learner {
 
 /// Training patterns from a region tree: a lattice of `grid[d]` points per input dimension over
 /// the whole workspace, each asking for the CEPs (scaled to file units) of the leaf it falls in;
-/// points in a leaf without CEPs (an unmeasurable region) are left out, so the learner must
+/// points in a leaf whose CEPs were not identified from its own measurements (an unmeasurable
+/// region, whatever it borrowed from its neighbours) are left out, so the learner must
 /// generalise there. A lattice at half the sensor spacing reaches every association cell.
 pub fn patterns_from_tree(tree: &RegionTree, scale: &[f64], grid: [usize; 3]) -> Vec<Pattern> {
     let mut out = Vec::new();
@@ -70,7 +165,8 @@ pub fn patterns_from_tree(tree: &RegionTree, scale: &[f64], grid: [usize; 3]) ->
         for j in 0..grid[1] {
             for k in 0..grid[2] {
                 let x = [at(0, i), at(1, j), at(2, k)];
-                let Some(cep) = &tree.root.leaf_at(&x, &f).cep else {
+                let leaf = tree.root.leaf_at(&x, &f);
+                let (Some(cep), true) = (&leaf.cep, leaf.is_measured()) else {
                     continue;
                 };
                 out.push(Pattern {
@@ -270,7 +366,16 @@ pub fn train(
         LearnerKind::Fcmac => {
             let config = settings.fcmac_config(tree.space);
             let patterns = patterns_from_tree(tree, scale, config.cells.map(|n| 2 * n - 1));
-            let mut f = Fcmac::new(config, tree.full, &init_scaled);
+            // Each cell starts at the CEPs of the region at its centre (an unmeasurable region's
+            // borrowed ones included), so cells no pattern reaches answer with the region-wise
+            // model rather than the whole workspace's.
+            let start = |x: &[f64; 3]| -> Vec<f64> {
+                match &tree.root.lookup(x, &tree.full).and_then(|n| n.cep.as_ref()) {
+                    Some(cep) => cep.iter().zip(scale).map(|(v, s)| v * s).collect(),
+                    None => init_scaled.clone(),
+                }
+            };
+            let mut f = Fcmac::starting_at(config, tree.full, &init_scaled, start);
             f.train(&patterns);
             Some(Learner::Fcmac(f))
         }
