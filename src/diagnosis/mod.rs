@@ -38,6 +38,7 @@
 
 pub mod backlash;
 pub mod compliance;
+pub mod discrepancy;
 pub mod drift;
 pub mod effects;
 pub mod heldout;
@@ -50,11 +51,13 @@ pub mod refit;
 pub mod report;
 pub mod screen;
 pub mod select;
+pub mod shapes;
 pub mod table_scale;
 pub mod table_squareness;
 pub mod transmission;
 pub mod unnamed;
 
+pub use discrepancy::{DiscrepancyModel, DiscrepancyReport, Region, ShapeReport};
 pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
 
 use crate::identification::{fit_geometry, FitError, Level, Observation};

@@ -49,6 +49,20 @@ impl Screen {
     pub fn rows(&self) -> usize {
         self.residual_raw.len()
     }
+
+    /// The noise variance per coordinate in the tests' weighted units (mm²), when pure error
+    /// gives it: the weights scale every axis to the pure-error variance of the unquantised
+    /// coordinates, so it is the pure-error σ². None without enough repeated poses (the tests
+    /// then use the residual variance of the model at hand).
+    pub fn noise_var(&self) -> Option<f64> {
+        self.use_pure_error
+            .then(|| self.pure_error.sigma().powi(2) + if self.weighted() { 0.0 } else { self.extra_var })
+    }
+
+    /// Whether the rows are weighted (the instrument's known variance differs by axis).
+    pub fn weighted(&self) -> bool {
+        self.weights.iter().any(|w| *w != 1.0)
+    }
 }
 
 /// Screens a standard fit: fails with [`DiagnoseError::TooFew`] when the residual degrees of
