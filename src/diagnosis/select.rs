@@ -15,7 +15,7 @@ use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
 use super::shapes::{refine_position, shape_bases, Form, ShapeSpec};
 use super::screen::{Screen, ALPHA_PART};
 use super::{Candidate, Data, SEPARABLE_CORRELATION};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// The candidate library over one recording, seen past the standard model.
 #[derive(Debug, Clone)]
@@ -266,8 +266,7 @@ pub fn forward_selection(
         }
         let lib = lib.filter(|(_, t)| t.p < ALPHA_PART / kk);
         let shape = if sel.shapes.len() < MAX_SHAPES {
-            best_shape(screen, &sel, shapes, &remaining_shapes)
-                .filter(|(_, t)| t.p < ALPHA_PART / nb && t.size >= SHAPE_MIN_SIZE)
+            best_shape(screen, &sel, shapes, &remaining_shapes, nb)
         } else {
             None
         };
@@ -399,14 +398,23 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
     sel.basis = q;
 }
 
-/// The remaining shape basis with the smallest p-value against the model of `sel`.
+/// The remaining shape basis with the smallest p-value against the model of `sel` among the
+/// eligible ones: p-value below [`ALPHA_PART`] ÷ `nb`, size at least [`SHAPE_MIN_SIZE`], and
+/// a smaller leave-one-measurement-out prediction error ([`press`]) than without it. The last
+/// keeps a flexible basis from fitting a few gross rows (they are the outlier judgement's) or
+/// the noise of a small recording: a row only its own coefficients explain is predicted no
+/// better without it.
 fn best_shape(
     screen: &Screen,
     sel: &Selection,
     shapes: &Shapes,
     remaining: &[usize],
+    nb: f64,
 ) -> Option<(usize, TermTest)> {
     let mut best: Option<(usize, TermTest)> = None;
+    let mut press_now: Option<(Vec<Matrix3<f64>>, f64)> = None;
+    let columns_left = (sel.residual.len().saturating_sub(sel.basis.ncols()) / 3)
+        .saturating_sub(sel.shapes.iter().map(|c| c.x.ncols()).sum());
     for &k in remaining {
         let Some(x) = &shapes.weighted[k] else {
             continue;
@@ -415,11 +423,59 @@ fn best_shape(
             continue;
         };
         tracing::trace!(shape = %shapes.specs[k].label(), p = t.p, ln_p = t.ln_p, size = t.size, "shape basis");
-        if best.as_ref().is_none_or(|b| t.ln_p < b.1.ln_p) {
+        if t.p >= ALPHA_PART / nb || t.size < SHAPE_MIN_SIZE || t.u.ncols() > columns_left {
+            continue;
+        }
+        if best.as_ref().is_some_and(|b| t.ln_p >= b.1.ln_p) {
+            continue;
+        }
+        let (hat, before) = press_now.get_or_insert_with(|| {
+            let hat = hat_blocks(&sel.basis);
+            let before = press(&hat, &sel.residual);
+            (hat, before)
+        });
+        let before = *before;
+        let with: Vec<Matrix3<f64>> = hat
+            .iter()
+            .zip(hat_blocks(&t.u))
+            .map(|(a, b)| a + b)
+            .collect();
+        let r = &sel.residual - &t.u * (t.u.transpose() * &sel.residual);
+        let after = press(&with, &r);
+        tracing::trace!(shape = %shapes.specs[k].label(), before, after, "shape PRESS");
+        if after < before {
             best = Some((k, t));
         }
     }
     best
+}
+
+/// The 3 × 3 diagonal blocks H_ii = Q_i Q_iᵀ of the hat matrix of the orthonormal basis `q`,
+/// one per measurement (the blocks of orthogonal bases side by side add).
+pub fn hat_blocks(q: &DMatrix<f64>) -> Vec<Matrix3<f64>> {
+    (0..q.nrows() / 3)
+        .map(|i| {
+            let b = q.rows(3 * i, 3);
+            let h = b * b.transpose();
+            Matrix3::from_fn(|r, c| h[(r, c)])
+        })
+        .collect()
+}
+
+/// The leave-one-measurement-out prediction error (PRESS) of a model with hat blocks `hat`
+/// ([`hat_blocks`]) and residual `r`: Σ_i ‖(I − H_ii)⁻¹ r_i‖². A measurement the model can only
+/// fit with its own coefficients (leverage near 1) counts as unpredicted.
+pub fn press(hat: &[Matrix3<f64>], r: &DVector<f64>) -> f64 {
+    let mut total = 0.0;
+    for (i, h) in hat.iter().enumerate() {
+        let m = Matrix3::identity() - h;
+        let e = nalgebra::Vector3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]);
+        total += match m.try_inverse() {
+            Some(inv) if inv.norm() < 1e6 => (inv * e).norm_squared(),
+            _ => 1e12 * e.norm_squared(),
+        };
+    }
+    total
 }
 
 /// The remaining candidate that best explains what the model of `sel` leaves (smallest p-value,
