@@ -174,3 +174,12 @@ fn fit_summary(std: &Standard, screen: &Screen, refit: &Refit, heldout: Heldout)
         heldout: heldout.what,
     }
 }
+
+/// The library effects and shapes forward selection chooses on a standard fit, without the
+/// report: what [`super::outliers::outliers_against_structure`] judges rows against.
+pub fn select_terms(std: &Standard, lib: &[Box<dyn Candidate>]) -> Result<Selection, DiagnoseError> {
+    let screen = screen(std)?;
+    let candidates = project_candidates(&screen, lib, &std.data);
+    let mut shapes = build_shapes(&screen, &std.data);
+    Ok(forward_selection(&screen, &candidates, &mut shapes, &std.data))
+}
