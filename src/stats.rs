@@ -226,7 +226,13 @@ mod tests {
     #[test]
     fn ln_f_sf_is_the_log_tail_even_where_the_tail_underflows() {
         // F(2, d2): P(F > f) = (1 + 2f/d2)^(−d2/2), so ln P = −(d2/2)·ln(1 + 2f/d2).
-        for &(f, d2) in &[(0.5f64, 10.0f64), (3.0, 40.0), (50.0, 200.0), (1e6, 1000.0), (1e9, 1800.0)] {
+        for &(f, d2) in &[
+            (0.5f64, 10.0f64),
+            (3.0, 40.0),
+            (50.0, 200.0),
+            (1e6, 1000.0),
+            (1e9, 1800.0),
+        ] {
             let want = -(d2 / 2.0) * (1.0 + 2.0 * f / d2).ln();
             close(ln_f_sf(f, 2.0, d2), want, 1e-9 * want.abs().max(1.0));
         }

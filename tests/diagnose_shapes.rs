@@ -68,16 +68,18 @@ fn judge(c: &Case, r: &Report) -> Verdict {
             true,
         ),
         (Truth::Position { centre_mm }, Some(s)) => {
-            let near = s.region.as_ref().is_some_and(|g| {
-                (nalgebra::Vector3::from(g.centre_mm) - centre_mm).norm() < 150.0
-            });
+            let near = s
+                .region
+                .as_ref()
+                .is_some_and(|g| (nalgebra::Vector3::from(g.centre_mm) - centre_mm).norm() < 150.0);
             (s.depends_on == "position", near)
         }
         _ => (false, false),
     };
-    let heldout_gain = r.discrepancy.as_ref().and_then(|d| {
-        Some(d.heldout_rms_with_mm? / d.heldout_rms_without_mm?)
-    });
+    let heldout_gain = r
+        .discrepancy
+        .as_ref()
+        .and_then(|d| Some(d.heldout_rms_with_mm? / d.heldout_rms_without_mm?));
     Verdict {
         claimed: !r.effects.is_empty(),
         described: r.unexplained && !r.out_of_library.is_empty(),
@@ -163,7 +165,13 @@ fn in_library_count(case: &LibraryCase, size: Option<f64>, seeds: u64, first: u6
         if names(&r) == vec![case.name.to_string()] && !r.unexplained {
             ok += 1;
         } else {
-            eprintln!("{} (visible {:.4} mm): {:?}\n{}", c.label, c.visible_mm, names(&r), r.text());
+            eprintln!(
+                "{} (visible {:.4} mm): {:?}\n{}",
+                c.label,
+                c.visible_mm,
+                names(&r),
+                r.text()
+            );
         }
     }
     ok
@@ -207,13 +215,32 @@ fn a_located_shape_is_reported_with_where_and_its_size() {
         panic!("a dent is on its own angle")
     };
     let s = &r.out_of_library[0];
-    assert_eq!((s.depends_on.as_str(), s.joint, s.form.as_str()), ("own_joint_angle", Some(joint + 1), "localised"), "{}", r.text());
+    assert_eq!(
+        (s.depends_on.as_str(), s.joint, s.form.as_str()),
+        ("own_joint_angle", Some(joint + 1), "localised"),
+        "{}",
+        r.text()
+    );
     let [a, b] = s.interval.expect("interval");
-    assert!(b - a < 40.0 && s.interval_unit.as_deref() == Some("deg"), "{s:?}");
-    assert!((s.size_mm / c.visible_mm - 1.0).abs() < 0.15, "{} vs {}", s.size_mm, c.visible_mm);
-    assert!(s.size_sigma_mm > 0.0 && s.size_sigma_mm < 0.1 * s.size_mm, "{s:?}");
+    assert!(
+        b - a < 40.0 && s.interval_unit.as_deref() == Some("deg"),
+        "{s:?}"
+    );
+    assert!(
+        (s.size_mm / c.visible_mm - 1.0).abs() < 0.15,
+        "{} vs {}",
+        s.size_mm,
+        c.visible_mm
+    );
+    assert!(
+        s.size_sigma_mm > 0.0 && s.size_sigma_mm < 0.1 * s.size_mm,
+        "{s:?}"
+    );
     let text = r.text();
-    assert!(text.contains("not in the library") && text.contains("discrepancy term"), "{text}");
+    assert!(
+        text.contains("not in the library") && text.contains("discrepancy term"),
+        "{text}"
+    );
     // The JSON keeps `unexplained` a bool and adds the structured description.
     let v = serde_json::to_value(&r).expect("json");
     assert_eq!(v["unexplained"], true);
@@ -268,7 +295,10 @@ fn rates() {
             })
             .sum();
         let large = in_library_count(&case, Some(10.0), seeds, 2000);
-        eprintln!("| {} | {natural}/{seeds} | {mid}/{seeds} | {large}/{seeds} |", case.name);
+        eprintln!(
+            "| {} | {natural}/{seeds} | {mid}/{seeds} | {large}/{seeds} |",
+            case.name
+        );
         for (what, k) in [("natural", natural), ("1–5×", mid), ("10×", large)] {
             if (k as f64) < 0.95 * seeds as f64 {
                 failures.push(format!("{} {what}: {k}/{seeds}", case.name));

@@ -286,15 +286,27 @@ fn structured_cases() -> Vec<common::shapes::Case> {
 fn a_clean_recording_with_structured_residuals_keeps_every_row() {
     for (k, c) in structured_cases().into_iter().enumerate() {
         let n = c.recording.observations().len();
-        let levels: &[Level] = if k == 0 { &[Level::Full, Level::Offsets] } else { &[Level::Full] };
+        let levels: &[Level] = if k == 0 {
+            &[Level::Full, Level::Offsets]
+        } else {
+            &[Level::Full]
+        };
         for &level in levels {
-            let id = identify(&c.scenario.rig, &c.recording, level, &IdentifyOptions::default())
-                .expect("identify");
+            let id = identify(
+                &c.scenario.rig,
+                &c.recording,
+                level,
+                &IdentifyOptions::default(),
+            )
+            .expect("identify");
             assert!(
                 id.outliers.is_empty() && id.outlier_warning.is_none(),
                 "{} at {level:?}: {:?} {:?}",
                 c.label,
-                id.outliers.iter().map(|o| (o.seq, o.size_mm)).collect::<Vec<_>>(),
+                id.outliers
+                    .iter()
+                    .map(|o| (o.seq, o.size_mm))
+                    .collect::<Vec<_>>(),
                 id.outlier_warning
             );
             assert_eq!(id.fit.after.n, n, "{}: every row fitted", c.label);
@@ -314,7 +326,11 @@ fn a_clean_recording_with_structured_residuals_keeps_every_row() {
     }
     let rec = sc.world().record(&poses, 1);
     let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
-    assert!(id.outliers.is_empty() && id.outlier_warning.is_none(), "{:?}", id.outliers);
+    assert!(
+        id.outliers.is_empty() && id.outlier_warning.is_none(),
+        "{:?}",
+        id.outliers
+    );
 }
 
 #[test]
@@ -357,11 +373,15 @@ fn planted_rows_are_found_in_a_structured_recording() {
             .filter(|(k, _)| !planted.iter().any(|p| p.0 == *k))
             .map(|(_, r)| r.clone())
             .collect();
-        let plain = identify(&rig, &clean, Level::Full, &IdentifyOptions::default())
-            .expect("identify");
+        let plain =
+            identify(&rig, &clean, Level::Full, &IdentifyOptions::default()).expect("identify");
         for k in 0..id.fit.params.len() {
             let (a, b) = (id.fit.params.get(k), plain.fit.params.get(k));
-            assert!((a - b).abs() < 1e-9 + 1e-6 * b.abs(), "{}: parameter {k}: {a} vs {b}", c.label);
+            assert!(
+                (a - b).abs() < 1e-9 + 1e-6 * b.abs(),
+                "{}: parameter {k}: {a} vs {b}",
+                c.label
+            );
         }
     }
 }

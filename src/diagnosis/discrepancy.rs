@@ -255,9 +255,9 @@ fn describe_shape(
 
 /// The range of joint `j` over the measurements.
 fn range_of(d: &Data, j: usize) -> (f64, f64) {
-    d.obs
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), o| (a.min(o.q[j]), b.max(o.q[j])))
+    d.obs.iter().fold((f64::MAX, f64::MIN), |(a, b), o| {
+        (a.min(o.q[j]), b.max(o.q[j]))
+    })
 }
 
 /// Form, interval and peak of a joint-space shape: its joint error g(q_driver) = f(q)·β on a
@@ -390,7 +390,9 @@ const MAX_PERIODIC_ORDER: u32 = 16;
 fn classify(xs: &[f64], ys: &[f64], angle: bool) -> (&'static str, [f64; 2], Option<u32>) {
     let n = ys.len();
     let abs: Vec<f64> = ys.iter().map(|y| y.abs()).collect();
-    let top = (0..n).max_by(|&a, &b| abs[a].total_cmp(&abs[b])).unwrap_or(0);
+    let top = (0..n)
+        .max_by(|&a, &b| abs[a].total_cmp(&abs[b]))
+        .unwrap_or(0);
     let half = 0.5 * abs.get(top).copied().unwrap_or(0.0);
     let (mut a, mut b) = (top, top);
     while a > 0 && abs[a - 1] >= half {
@@ -399,7 +401,10 @@ fn classify(xs: &[f64], ys: &[f64], angle: bool) -> (&'static str, [f64; 2], Opt
     while b + 1 < n && abs[b + 1] >= half {
         b += 1;
     }
-    let full = [xs.first().copied().unwrap_or(0.0), xs.last().copied().unwrap_or(0.0)];
+    let full = [
+        xs.first().copied().unwrap_or(0.0),
+        xs.last().copied().unwrap_or(0.0),
+    ];
     let span = (full[1] - full[0]).max(1e-300);
     let total: f64 = ys.iter().map(|y| y * y).sum::<f64>().max(1e-300);
     let inside: f64 = ys[a..=b].iter().map(|y| y * y).sum();
@@ -452,7 +457,11 @@ fn dominant_order(xs: &[f64], ys: &[f64], span: f64) -> Option<u32> {
 fn shape_text(spec: &ShapeSpec, r: &ShapeReport) -> String {
     let mut s = spec.variable.label();
     let unit = r.interval_unit.as_deref().unwrap_or("");
-    let unit_sym = if unit == "deg" { "°".to_string() } else { format!(" {unit}") };
+    let unit_sym = if unit == "deg" {
+        "°".to_string()
+    } else {
+        format!(" {unit}")
+    };
     let span = |i: [f64; 2]| format!("[{:.0}, {:.0}]{unit_sym}", i[0], i[1]);
     match (r.form.as_str(), r.interval, &r.region) {
         ("periodic", Some(i), _) => {
@@ -471,7 +480,11 @@ fn shape_text(spec: &ShapeSpec, r: &ShapeReport) -> String {
             );
         }
         (form, Some(i), _) => {
-            let where_ = if form == "localised" { "in" } else { "largest in" };
+            let where_ = if form == "localised" {
+                "in"
+            } else {
+                "largest in"
+            };
             let _ = write!(s, ", {form}, {where_} {}", span(i));
         }
         (form, None, Some(g)) => {
@@ -505,11 +518,17 @@ mod tests {
     #[test]
     fn a_narrow_bump_is_localised_where_it_is() {
         let xs = grid(-1.0, 2.0);
-        let ys: Vec<f64> = xs.iter().map(|x| (-(x - 0.5f64).powi(2) / (2.0 * 0.1 * 0.1)).exp()).collect();
+        let ys: Vec<f64> = xs
+            .iter()
+            .map(|x| (-(x - 0.5f64).powi(2) / (2.0 * 0.1 * 0.1)).exp())
+            .collect();
         let (form, i, order) = classify(&xs, &ys, true);
         assert_eq!((form, order), ("localised", None));
         // Half maximum at 0.5 ± 0.1·√(2 ln 2) = 0.5 ± 0.118.
-        assert!((i[0] - 0.382).abs() < 0.02 && (i[1] - 0.618).abs() < 0.02, "{i:?}");
+        assert!(
+            (i[0] - 0.382).abs() < 0.02 && (i[1] - 0.618).abs() < 0.02,
+            "{i:?}"
+        );
     }
 
     #[test]

@@ -11,8 +11,8 @@ use super::linalg::{hcat, lstsq, rows_of, rows_of_vector};
 use super::refit::Refit;
 use super::select::Selection;
 use super::{Candidate, Data, Standard};
-use nalgebra::DMatrix;
 use crate::identification::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
+use nalgebra::DMatrix;
 use nalgebra::Vector3;
 use std::convert::Infallible;
 
@@ -106,8 +106,12 @@ pub fn outliers_against_structure(
         let all = super::prepare(&std.data.chain, &std.data.e, rec)?;
         let a = design_on(rig, rec, &std, &sel, &lib, &all);
         let r = super::residual_of(&all);
-        let ids: Vec<(u64, Option<u64>)> =
-            all.seq.iter().copied().zip(all.line.iter().copied()).collect();
+        let ids: Vec<(u64, Option<u64>)> = all
+            .seq
+            .iter()
+            .copied()
+            .zip(all.line.iter().copied())
+            .collect();
         last = remove_outliers(&ids, settings, |kept| {
             let fit = lstsq(&rows_of(&a, kept), &rows_of_vector(&r, kept));
             let res = &r - &a * fit.solution;

@@ -4,8 +4,8 @@
 //!
 //! Error budget, α = [`ALPHA`](super::ALPHA) overall, split in three equal parts
 //! ([`ALPHA_PART`](super::screen::ALPHA_PART)): the candidate steps (Bonferroni over the
-//! candidates remaining at each step), the unnamed bases (Bonferroni over the bases) and the
-//! final lack-of-fit test against pure error.
+//! candidates remaining at each step), the shape bases (Bonferroni over the bases, and only when
+//! sizeable) and the final lack-of-fit test against pure error.
 //!
 //! Units: stacked residuals in mm (3 rows per measurement); coefficients in each candidate's
 //! units (see the candidate files).
@@ -177,9 +177,17 @@ fn fit_summary(std: &Standard, screen: &Screen, refit: &Refit, heldout: Heldout)
 
 /// The library effects and shapes forward selection chooses on a standard fit, without the
 /// report: what [`super::outliers::outliers_against_structure`] judges rows against.
-pub fn select_terms(std: &Standard, lib: &[Box<dyn Candidate>]) -> Result<Selection, DiagnoseError> {
+pub fn select_terms(
+    std: &Standard,
+    lib: &[Box<dyn Candidate>],
+) -> Result<Selection, DiagnoseError> {
     let screen = screen(std)?;
     let candidates = project_candidates(&screen, lib, &std.data);
     let mut shapes = build_shapes(&screen, &std.data);
-    Ok(forward_selection(&screen, &candidates, &mut shapes, &std.data))
+    Ok(forward_selection(
+        &screen,
+        &candidates,
+        &mut shapes,
+        &std.data,
+    ))
 }

@@ -355,7 +355,11 @@ impl Report {
                 let _ = writeln!(s, "  where: {}", w.description);
             }
             for o in &self.out_of_library {
-                let _ = writeln!(s, "  not in the library: {} (p = {:.1e}; fitted with {})", o.description, o.p_value, o.basis);
+                let _ = writeln!(
+                    s,
+                    "  not in the library: {} (p = {:.1e}; fitted with {})",
+                    o.description, o.p_value, o.basis
+                );
             }
         }
         if let Some(d) = &self.discrepancy {

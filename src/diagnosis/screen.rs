@@ -12,7 +12,7 @@ use super::unnamed::Leftover;
 use super::{DiagnoseError, Standard, ALPHA, MIN_PURE_ERROR_DOF};
 use nalgebra::{DMatrix, DVector};
 
-/// Each third of the error budget [`ALPHA`]: the candidate steps, the unnamed bases and the
+/// Each third of the error budget [`ALPHA`]: the candidate steps, the shape bases and the
 /// final lack-of-fit test (module documentation of [`super::select`]).
 pub const ALPHA_PART: f64 = ALPHA / 3.0;
 
@@ -55,8 +55,9 @@ impl Screen {
     /// coordinates, so it is the pure-error σ². None without enough repeated poses (the tests
     /// then use the residual variance of the model at hand).
     pub fn noise_var(&self) -> Option<f64> {
-        self.use_pure_error
-            .then(|| self.pure_error.sigma().powi(2) + if self.weighted() { 0.0 } else { self.extra_var })
+        self.use_pure_error.then(|| {
+            self.pure_error.sigma().powi(2) + if self.weighted() { 0.0 } else { self.extra_var }
+        })
     }
 
     /// Whether the rows are weighted (the instrument's known variance differs by axis).

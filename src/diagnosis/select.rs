@@ -12,8 +12,8 @@
 //! Units: stacked regressors in mm per unit coefficient (3 rows per measurement).
 
 use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
-use super::shapes::{refine_position, shape_bases, Form, ShapeSpec};
 use super::screen::{Screen, ALPHA_PART};
+use super::shapes::{refine_position, shape_bases, Form, ShapeSpec};
 use super::{Candidate, Data, SEPARABLE_CORRELATION};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
@@ -307,7 +307,13 @@ pub fn forward_selection(
                 chosen_visible = orth_basis(&DMatrix::from_columns(&cols), 1e-6);
             }
             remaining.retain(|&c| c != k);
-            tracing::debug!(candidate = k, p = t.p, ln_p = t.ln_p, size = t.size, "candidate chosen");
+            tracing::debug!(
+                candidate = k,
+                p = t.p,
+                ln_p = t.ln_p,
+                size = t.size,
+                "candidate chosen"
+            );
             sel.chosen.push(Chosen {
                 cand: k,
                 x: cands.regressors[k]
@@ -345,8 +351,14 @@ fn model_without(
     skip: Option<usize>,
 ) -> DMatrix<f64> {
     let mut blocks = vec![screen.basis.clone()];
-    let lib = sel.chosen.iter().filter_map(|c| cands.weighted[c.cand].clone());
-    let shp = sel.shapes.iter().filter_map(|c| shapes.weighted[c.shape].clone());
+    let lib = sel
+        .chosen
+        .iter()
+        .filter_map(|c| cands.weighted[c.cand].clone());
+    let shp = sel
+        .shapes
+        .iter()
+        .filter_map(|c| shapes.weighted[c.shape].clone());
     for (i, b) in lib.chain(shp).enumerate() {
         if Some(i) != skip {
             blocks.push(b);

@@ -223,7 +223,9 @@ impl Form {
     pub fn label(&self) -> String {
         match self {
             Form::Spline { intervals, .. } => format!("cubic B-splines on {intervals} intervals"),
-            Form::Harmonics { orders } => format!("harmonics of orders {}–{}", orders[0], orders[1]),
+            Form::Harmonics { orders } => {
+                format!("harmonics of orders {}–{}", orders[0], orders[1])
+            }
             Form::Radial { centres, width_mm } => format!(
                 "{} Gaussian radial functions of width {width_mm:.0} mm",
                 centres.len()
@@ -244,9 +246,9 @@ impl ShapeSpec {
         let n = d.len();
         let k = self.form.functions();
         match self.variable {
-            Variable::OwnAngle { joint } => joint_columns(d, joint, |i| {
-                self.form.values(d.obs[i].q[joint])
-            }),
+            Variable::OwnAngle { joint } => {
+                joint_columns(d, joint, |i| self.form.values(d.obs[i].q[joint]))
+            }
             Variable::OtherAngle { acted, driver } => {
                 if !d.moving.contains(&driver) {
                     return None;
@@ -274,11 +276,7 @@ impl ShapeSpec {
 }
 
 /// Columns f_k(i)·J_joint(i) (3 rows per measurement), or None when the joint does not move.
-fn joint_columns(
-    d: &Data,
-    joint: usize,
-    f: impl Fn(usize) -> Vec<f64>,
-) -> Option<DMatrix<f64>> {
+fn joint_columns(d: &Data, joint: usize, f: impl Fn(usize) -> Vec<f64>) -> Option<DMatrix<f64>> {
     if !d.moving.contains(&joint) {
         return None;
     }
@@ -311,9 +309,9 @@ fn axis_columns(n: usize, k: usize, f: impl Fn(usize) -> Vec<f64>) -> DMatrix<f6
 
 /// Range of joint `j` over the measurements.
 fn joint_range(d: &Data, j: usize) -> (f64, f64) {
-    d.obs
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), o| (a.min(o.q[j]), b.max(o.q[j])))
+    d.obs.iter().fold((f64::MAX, f64::MIN), |(a, b), o| {
+        (a.min(o.q[j]), b.max(o.q[j]))
+    })
 }
 
 /// Spline intervals for `m` measurements: one per `per` measurements, within [lo, hi].
@@ -461,7 +459,12 @@ pub fn refine_position(d: &Data, size: &[f64], coarse_width_mm: f64) -> Option<S
         .collect();
     let spacing = 0.4 * coarse_width_mm;
     let centres = farthest_points(&region, 30, spacing);
-    tracing::debug!(points = region.len(), centres = centres.len(), coarse_width_mm, "refinement");
+    tracing::debug!(
+        points = region.len(),
+        centres = centres.len(),
+        coarse_width_mm,
+        "refinement"
+    );
     if region.len() < 12 || centres.len() < 4 {
         return None;
     }
@@ -522,7 +525,10 @@ mod tests {
         assert_eq!(nz.len(), 3);
         assert!((nz[0] - 1.0 / 6.0).abs() < 1e-12 && (nz[1] - 2.0 / 3.0).abs() < 1e-12);
         // Outside the range the values are those at its end.
-        assert_eq!(spline_values(-5.0, 0.0, 1.0, 10), spline_values(0.0, 0.0, 1.0, 10));
+        assert_eq!(
+            spline_values(-5.0, 0.0, 1.0, 10),
+            spline_values(0.0, 0.0, 1.0, 10)
+        );
     }
 
     #[test]

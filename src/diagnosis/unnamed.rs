@@ -40,15 +40,17 @@ impl Leftover {
 
 /// Collects the chosen shapes and tests what the final model of `sel` leaves: further shape
 /// bases when [`MAX_SHAPES`] were taken, and the repeatability of the reference poses.
-pub fn test_leftover(std: &Standard, screen: &Screen, sel: &Selection, shapes: &Shapes) -> Leftover {
+pub fn test_leftover(
+    std: &Standard,
+    screen: &Screen,
+    sel: &Selection,
+    shapes: &Shapes,
+) -> Leftover {
     let nrows = screen.rows();
     let m = nrows / 3;
     let dof_final = nrows.saturating_sub(sel.basis.ncols());
-    let mut unexplained_by: Vec<(String, f64)> = sel
-        .shapes
-        .iter()
-        .map(|c| (c.spec.label(), c.p))
-        .collect();
+    let mut unexplained_by: Vec<(String, f64)> =
+        sel.shapes.iter().map(|c| (c.spec.label(), c.p)).collect();
     if sel.shapes.len() >= MAX_SHAPES {
         let nb = shapes.testable() as f64;
         for (k, x) in shapes.weighted.iter().enumerate() {
@@ -65,10 +67,7 @@ pub fn test_leftover(std: &Standard, screen: &Screen, sel: &Selection, shapes: &
                     / dof_final.saturating_sub(u.ncols()).max(1) as f64
             });
             if p < ALPHA_PART / nb && size_ratio(dss, u.ncols(), s2, m) >= SHAPE_MIN_SIZE {
-                unexplained_by.push((
-                    format!("more structure: {}", shapes.specs[k].label()),
-                    p,
-                ));
+                unexplained_by.push((format!("more structure: {}", shapes.specs[k].label()), p));
                 break;
             }
         }

@@ -150,7 +150,10 @@ fn identify_robust(
     // The geometric judgement only decides whether any row looks off; the rows are then judged
     // against the recording's structure ([`judge_against_structure`]), so it stops at the first.
     match geometric_search(rig, rec, level, settings, true) {
-        Ok(Searched::Clean(chain, result)) => Ok((chain, result, Vec::new(), None)),
+        Ok(Searched::Clean(fitted)) => {
+            let (chain, result) = *fitted;
+            Ok((chain, result, Vec::new(), None))
+        }
         Ok(Searched::Flagged) => judge_against_structure(rig, rec, level, settings),
         Err(e) => Err(e),
     }
@@ -159,7 +162,7 @@ fn identify_robust(
 /// What the geometric outlier search found.
 enum Searched {
     /// No row fails: the fit on every row.
-    Clean(SerialChain, FitResult),
+    Clean(Box<(SerialChain, FitResult)>),
     /// Some row fails (or too many do).
     Flagged,
 }
@@ -203,7 +206,7 @@ fn geometric_search(
                 Some(fitted) => fitted,
                 None => identify_at(rig, &obs, level)?,
             };
-            Ok(Searched::Clean(chain, result))
+            Ok(Searched::Clean(Box::new((chain, result))))
         }
         Ok(_) | Err(OutlierError::TooMany { .. }) | Err(OutlierError::Fit(Probe::Flagged)) => {
             Ok(Searched::Flagged)

@@ -1,4 +1,4 @@
 //! Test helpers shared by several integration tests.
 
-pub mod synthetic8;
 pub mod shapes;
+pub mod synthetic8;

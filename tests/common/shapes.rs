@@ -248,7 +248,8 @@ impl Deformation {
     pub fn apply(&self, rec: &mut Recording) {
         for row in &mut rec.rows {
             if let Some(p) = row.position.as_mut() {
-                let g = (-(*p - self.centre).norm_squared() / (2.0 * self.width * self.width)).exp();
+                let g =
+                    (-(*p - self.centre).norm_squared() / (2.0 * self.width * self.width)).exp();
                 *p += self.direction * (self.amplitude * g);
             }
         }
@@ -278,7 +279,9 @@ fn visible_size(
 
 /// Range (min, max) of joint `j` over `poses`.
 fn range(poses: &[Vec<f64>], j: usize) -> (f64, f64) {
-    poses.iter().fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q[j]), b.max(q[j])))
+    poses
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), q| (a.min(q[j]), b.max(q[j])))
 }
 
 /// An out-of-library case of `class` at `size` × the floor (visible), seed `seed`.
@@ -361,7 +364,13 @@ pub fn out_of_library(class: Class, seed: u64, size: f64) -> Case {
             };
             let recording = record(&sc, &p, &r);
             Case {
-                label: format!("{} {shape:?} on joint {} by joint {}, {:.4}°", class.name(), acted + 1, driver + 1, amplitude.to_degrees()),
+                label: format!(
+                    "{} {shape:?} on joint {} by joint {}, {:.4}°",
+                    class.name(),
+                    acted + 1,
+                    driver + 1,
+                    amplitude.to_degrees()
+                ),
                 scenario: sc,
                 recording,
                 truth,
@@ -371,10 +380,17 @@ pub fn out_of_library(class: Class, seed: u64, size: f64) -> Case {
         Class::Deformation => {
             let positions: Vec<Vector3<f64>> = p
                 .iter()
-                .map(|q| sc.rig.chain.position(q, &ErrorParams::zeros(sc.rig.chain.layout())))
+                .map(|q| {
+                    sc.rig
+                        .chain
+                        .position(q, &ErrorParams::zeros(sc.rig.chain.layout()))
+                })
                 .collect();
             let mean = positions.iter().sum::<Vector3<f64>>() / positions.len() as f64;
-            let spread = (positions.iter().map(|x| (x - mean).norm_squared()).sum::<f64>()
+            let spread = (positions
+                .iter()
+                .map(|x| (x - mean).norm_squared())
+                .sum::<f64>()
                 / positions.len() as f64)
                 .sqrt();
             let centre = positions[rng.random_range(0..positions.len())];
@@ -455,16 +471,89 @@ pub fn library_cases() -> Vec<LibraryCase> {
         })
     }
     vec![
-        LibraryCase { rig: "rv-m2-ideal", name: "joint_compliance:2", make: |a| compliance(1, 0.0005 * a) },
-        LibraryCase { rig: "rv-m2-ideal", name: "joint_compliance:3", make: |a| compliance(2, 0.001 * a) },
-        LibraryCase { rig: "rv-m2-ideal", name: "backlash:1", make: |a| Arc::new(Backlash { joint: 0, lost_motion: (0.01 * a).to_radians() }) },
-        LibraryCase { rig: "rv-m2-ideal", name: "backlash:3", make: |a| Arc::new(Backlash { joint: 2, lost_motion: (0.01 * a).to_radians() }) },
-        LibraryCase { rig: "rv-m2-ideal", name: "transmission_error:1", make: |a| harmonic(0, 2, 0.005 * a, 30.0) },
-        LibraryCase { rig: "rv-m2-ideal", name: "transmission_error:2", make: |a| harmonic(1, 3, 0.005 * a, -60.0) },
-        LibraryCase { rig: "rv-m2-ideal", name: "thermal_drift:z", make: |a| Arc::new(ThermalDrift { target: DriftTarget::Axis(2), amplitude: 0.05 * a, tau_s: 1800.0 }) },
-        LibraryCase { rig: "rv-m2-ideal", name: "thermal_drift:2", make: |a| Arc::new(ThermalDrift { target: DriftTarget::Joint(1), amplitude: (0.008 * a).to_radians(), tau_s: 1800.0 }) },
-        LibraryCase { rig: "rv-m2", name: "table_scale:x", make: |a| Arc::new(TableScale { axis: 0, scale: 150e-6 * a }) },
-        LibraryCase { rig: "rv-m2", name: "table_squareness:xy", make: |a| Arc::new(TableSquareness { first: 0, second: 1, angle: (0.01 * a).to_radians() }) },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "joint_compliance:2",
+            make: |a| compliance(1, 0.0005 * a),
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "joint_compliance:3",
+            make: |a| compliance(2, 0.001 * a),
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "backlash:1",
+            make: |a| {
+                Arc::new(Backlash {
+                    joint: 0,
+                    lost_motion: (0.01 * a).to_radians(),
+                })
+            },
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "backlash:3",
+            make: |a| {
+                Arc::new(Backlash {
+                    joint: 2,
+                    lost_motion: (0.01 * a).to_radians(),
+                })
+            },
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "transmission_error:1",
+            make: |a| harmonic(0, 2, 0.005 * a, 30.0),
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "transmission_error:2",
+            make: |a| harmonic(1, 3, 0.005 * a, -60.0),
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "thermal_drift:z",
+            make: |a| {
+                Arc::new(ThermalDrift {
+                    target: DriftTarget::Axis(2),
+                    amplitude: 0.05 * a,
+                    tau_s: 1800.0,
+                })
+            },
+        },
+        LibraryCase {
+            rig: "rv-m2-ideal",
+            name: "thermal_drift:2",
+            make: |a| {
+                Arc::new(ThermalDrift {
+                    target: DriftTarget::Joint(1),
+                    amplitude: (0.008 * a).to_radians(),
+                    tau_s: 1800.0,
+                })
+            },
+        },
+        LibraryCase {
+            rig: "rv-m2",
+            name: "table_scale:x",
+            make: |a| {
+                Arc::new(TableScale {
+                    axis: 0,
+                    scale: 150e-6 * a,
+                })
+            },
+        },
+        LibraryCase {
+            rig: "rv-m2",
+            name: "table_squareness:xy",
+            make: |a| {
+                Arc::new(TableSquareness {
+                    first: 0,
+                    second: 1,
+                    angle: (0.01 * a).to_radians(),
+                })
+            },
+        },
     ]
 }
 
