@@ -5,7 +5,7 @@
 //!
 //! Units: sizes in mm (3-D RMS), parameters in each candidate's report units.
 
-use super::heldout::{heldout_rms, Heldout, HeldoutRecording};
+use super::heldout::{heldout_rms, Heldout, HeldoutRecording, Terms};
 use super::linalg::project_out;
 use super::refit::Refit;
 use super::report::EffectReport;
@@ -26,7 +26,7 @@ pub struct EffectInputs<'a> {
     pub candidates: &'a Candidates,
     /// The selection.
     pub selection: &'a Selection,
-    /// The refit.
+    /// The refit with the discrepancy term's shapes (the effects' coefficients come first).
     pub refit: &'a Refit,
 }
 
@@ -53,7 +53,18 @@ pub fn describe_effects(
         col += c.x.ncols();
     }
     let all: Vec<&Chosen> = chosen.iter().collect();
-    let with_all = heldout_rms(inp.std, &all, lib, heldout);
+    let terms = |effects: &[&Chosen]| -> Heldout {
+        heldout_rms(
+            inp.std,
+            Terms {
+                effects,
+                shapes: &[],
+            },
+            lib,
+            heldout,
+        )
+    };
+    let with_all = terms(&all);
     for (k, e) in reports.iter_mut().enumerate() {
         let others: Vec<&Chosen> = chosen
             .iter()
@@ -62,7 +73,7 @@ pub fn describe_effects(
             .map(|(_, c)| c)
             .collect();
         e.heldout_rms_with_mm = with_all.after;
-        e.heldout_rms_without_mm = heldout_rms(inp.std, &others, lib, heldout).after;
+        e.heldout_rms_without_mm = terms(&others).after;
     }
     Effects {
         reports,

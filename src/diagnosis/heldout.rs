@@ -1,11 +1,11 @@
-//! Held-out RMS of a model (geometry with some of the chosen effects): fitted on the training
-//! part and evaluated on the rest — the `--heldout` recordings when given, else 2 of 8 whole
-//! time blocks of the recording itself.
+//! Held-out RMS of a model (geometry with some of the chosen effects and shapes): fitted on the
+//! training part and evaluated on the rest — the `--heldout` recordings when given, else 2 of 8
+//! whole time blocks of the recording itself.
 //!
 //! Units: 3-D RMS in mm.
 
 use super::linalg::{hcat, lstsq, rms3, rows_of, rows_of_vector};
-use super::select::Chosen;
+use super::select::{Chosen, ChosenShape};
 use super::{Candidate, Data, Standard};
 use nalgebra::{DMatrix, DVector};
 
@@ -15,41 +15,79 @@ const MIN_FOR_SPLIT: usize = 80;
 /// A held-out recording at the fitted geometry: its data, geometric Jacobian and residual.
 pub type HeldoutRecording = (Data, DMatrix<f64>, DVector<f64>);
 
-/// Held-out RMS before (geometry only) and after (geometry and the effects).
+/// Held-out RMS before (geometry only) and after (geometry and the terms).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Heldout {
     /// Geometry only (mm); None without a held-out part.
     pub before: Option<f64>,
-    /// Geometry and the effects (mm); None without a held-out part.
+    /// Geometry and the terms (mm); None without a held-out part.
     pub after: Option<f64>,
     /// What was held out, in words.
     pub what: String,
 }
 
-/// Held-out RMS before and after adding `chosen` to the geometry, both fitted on the training
-/// part.
-pub fn heldout_rms(
-    std: &Standard,
-    chosen: &[&Chosen],
-    lib: &[Box<dyn Candidate>],
-    heldout: &[HeldoutRecording],
-) -> Heldout {
-    let mut a_cols = vec![std.jacobian.clone()];
-    a_cols.extend(chosen.iter().map(|c| c.x.clone()));
-    let a_all = hcat(&a_cols, 3 * std.data.len());
-    if heldout.is_empty() {
-        time_block_split(std, &a_all)
-    } else {
-        other_recordings(std, &a_all, chosen, lib, heldout)
+/// The terms of a model beside the geometry: named effects and shapes.
+#[derive(Debug, Clone, Copy)]
+pub struct Terms<'a> {
+    /// Named effects.
+    pub effects: &'a [&'a Chosen],
+    /// Shapes of the discrepancy term.
+    pub shapes: &'a [&'a ChosenShape],
+}
+
+impl Terms<'_> {
+    /// The training columns, geometry first.
+    fn design(&self, std: &Standard) -> DMatrix<f64> {
+        let mut cols = vec![std.jacobian.clone()];
+        cols.extend(self.effects.iter().map(|c| c.x.clone()));
+        cols.extend(self.shapes.iter().map(|c| c.x.clone()));
+        hcat(&cols, 3 * std.data.len())
+    }
+
+    /// The same columns rebuilt on a held-out recording (zero where it cannot show a term).
+    fn design_on(&self, lib: &[Box<dyn Candidate>], hd: &Data, hg: &DMatrix<f64>) -> DMatrix<f64> {
+        let n = 3 * hd.len();
+        let mut cols = vec![hg.clone()];
+        for c in self.effects {
+            cols.push(
+                lib[c.cand]
+                    .regressors(hd)
+                    .unwrap_or_else(|| DMatrix::zeros(n, c.x.ncols())),
+            );
+        }
+        for s in self.shapes {
+            cols.push(
+                s.spec
+                    .columns(hd)
+                    .unwrap_or_else(|| DMatrix::zeros(n, s.x.ncols())),
+            );
+        }
+        hcat(&cols, n)
     }
 }
 
-/// Fitted on the whole recording, evaluated on the held-out recordings (each effect's columns
-/// rebuilt on them; zero where a recording cannot show it).
+/// Held-out RMS before and after adding `terms` to the geometry, both fitted on the training
+/// part.
+pub fn heldout_rms(
+    std: &Standard,
+    terms: Terms<'_>,
+    lib: &[Box<dyn Candidate>],
+    heldout: &[HeldoutRecording],
+) -> Heldout {
+    let a_all = terms.design(std);
+    if heldout.is_empty() {
+        time_block_split(std, &a_all)
+    } else {
+        other_recordings(std, &a_all, terms, lib, heldout)
+    }
+}
+
+/// Fitted on the whole recording, evaluated on the held-out recordings (each term's columns
+/// rebuilt on them).
 fn other_recordings(
     std: &Standard,
     a_all: &DMatrix<f64>,
-    chosen: &[&Chosen],
+    terms: Terms<'_>,
     lib: &[Box<dyn Candidate>],
     heldout: &[HeldoutRecording],
 ) -> Heldout {
@@ -58,14 +96,7 @@ fn other_recordings(
     let mut before = Vec::new();
     let mut after = Vec::new();
     for (hd, hg, hr) in heldout {
-        let mut cols = vec![hg.clone()];
-        for c in chosen {
-            match lib[c.cand].regressors(hd) {
-                Some(x) => cols.push(x),
-                None => cols.push(DMatrix::zeros(3 * hd.len(), c.x.ncols())),
-            }
-        }
-        let ha = hcat(&cols, 3 * hd.len());
+        let ha = terms.design_on(lib, hd, hg);
         before.extend((hr - hg * &dg).iter().copied());
         after.extend((hr - ha * &da).iter().copied());
     }

@@ -3,7 +3,7 @@
 //! partial F-test of adding it, column-scaled least squares, row selection and weighting.
 
 use super::MIN_VISIBLE;
-use crate::stats::f_sf;
+use crate::stats::{f_sf, ln_f_sf};
 use nalgebra::{DMatrix, DVector};
 
 /// An orthonormal basis of the column space of `m` (columns scaled to unit norm first; singular
@@ -77,6 +77,20 @@ pub fn partial_f(u: &DMatrix<f64>, r: &DVector<f64>, dof: usize) -> (f64, f64) {
     let d2 = (dof - k) as f64;
     let f = (dss / k as f64) / ((rss - dss).max(1e-300) / d2);
     (f_sf(f, k as f64, d2), dss)
+}
+
+/// [`partial_f`] with the log of the p-value too, exact where the p-value underflows:
+/// (p, ln p, ΔSS). Terms are ranked by ln p, so a 10× effect and its rivals do not all tie at 0.
+pub fn partial_f_ln(u: &DMatrix<f64>, r: &DVector<f64>, dof: usize) -> (f64, f64, f64) {
+    let k = u.ncols();
+    if k == 0 || dof <= k {
+        return (1.0, 0.0, 0.0);
+    }
+    let rss = r.norm_squared();
+    let dss = (u.transpose() * r).norm_squared().min(rss);
+    let d2 = (dof - k) as f64;
+    let f = (dss / k as f64) / ((rss - dss).max(1e-300) / d2);
+    (f_sf(f, k as f64, d2), ln_f_sf(f, k as f64, d2), dss)
 }
 
 /// A least-squares solution with what the tests need of it.

@@ -1,6 +1,6 @@
 //! Diagnosis: what physics the nominal (geometric) model leaves out of a recording.
 //!
-//! Steps (issue 4/7, conventions §1 and §9), one module per stage, run in order by
+//! Steps (issues 4/7 and 18, conventions §1 and §9), one module per stage, run in order by
 //! [`pipeline::run`]:
 //! 1. fit the standard model: the identifiable geometric parameters (the registration is part of
 //!    them, so a registration offset is absorbed and never named);
@@ -10,15 +10,36 @@
 //! 3. locate it ([`report::locate`]): axis, joint ranges, correlation with joint angle, approach
 //!    direction, time, table coordinate, gravity torque;
 //! 4. name it ([`select`]): candidates from the library (one file each) projected onto the
-//!    orthogonal complement of the geometric Jacobian, forward selection with partial F-tests;
-//! 5. refit with the chosen effects ([`refit`]) and report each effect ([`effects`]): RMS
-//!    before/after on the fitted and held-out data ([`heldout`]), per effect the share the
+//!    orthogonal complement of the geometric Jacobian, and flexible *shape bases* ([`shapes`]:
+//!    a joint's error along its own angle or another joint's, along its angle by approach
+//!    direction, a Cartesian error along time or across the workspace) beside them; forward
+//!    selection with partial F-tests takes whichever explains the residual best — a library
+//!    effect the data show exactly wins, an unknown shape wins over the library terms that each
+//!    soak up part of it — and drops the library terms a chosen shape makes redundant;
+//! 5. refit with the chosen effects and shapes ([`refit`]) and report each effect ([`effects`]):
+//!    RMS before/after on the fitted and held-out data ([`heldout`]), per effect the share the
 //!    geometry absorbed and the held-out RMS with and without it;
-//! 6. test what is left against flexible unnamed bases ([`unnamed`]) and report `unexplained`
-//!    when it matters;
+//! 6. what is left ([`unnamed`]): the located shapes are reported as `unexplained`, each
+//!    described by its shape ([`discrepancy`]: what it depends on, localised or periodic, where,
+//!    its size ± σ), and fitted as a smooth *discrepancy term* whose held-out gain is reported
+//!    apart from the named physics. Structure counts only when it is *sizeable*, at least
+//!    [`select::SHAPE_MIN_SIZE`] of the noise floor: a large effect named right leaves a
+//!    residual at the floor that a test over thousands of degrees of freedom may still find
+//!    significant, and is not flagged;
 //! 7. judge outliers against the final model ([`outliers`], with
 //!    [`crate::identification::outliers`]), remove them and diagnose again without them, naming
-//!    each with its seq, line and size.
+//!    each with its seq, line and size. `identification::identify` judges rows against the same
+//!    model ([`outliers::outliers_against_structure`]), so a structured residual keeps its rows.
+//!
+//! The discrepancy term is a regression spline (cubic B-splines on equal intervals of the
+//! located variable; harmonics above the library's orders for periodic joint errors) or, over
+//! the workspace, Gaussian radial functions, refined where a coarse fit found something.
+//! Why: it is linear in its coefficients, so the same F-tests, sizes and σ's serve the library
+//! and the shapes and the term is ordinary least squares (a Gaussian process would fit similar
+//! curves at O(n³), with hyper-parameters to choose and a marginal likelihood that does not
+//! compare with the library's tests); the splines' local support keeps a dent where it is; a
+//! shape joins only when it lowers the leave-one-measurement-out error, so it cannot fit a few
+//! gross rows or the noise of a small recording.
 //!
 //! The regression algebra the stages share is in [`linalg`], the distribution functions in
 //! [`crate::stats`].
@@ -38,6 +59,7 @@
 
 pub mod backlash;
 pub mod compliance;
+pub mod discrepancy;
 pub mod drift;
 pub mod effects;
 pub mod heldout;
@@ -50,11 +72,13 @@ pub mod refit;
 pub mod report;
 pub mod screen;
 pub mod select;
+pub mod shapes;
 pub mod table_scale;
 pub mod table_squareness;
 pub mod transmission;
 pub mod unnamed;
 
+pub use discrepancy::{DiscrepancyModel, DiscrepancyReport, Region, ShapeReport};
 pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
 
 use crate::identification::{fit_geometry, FitError, Level, Observation};
@@ -342,7 +366,7 @@ pub const QUANTISATION_HARMONICS: usize = 3;
 /// offset u from the panel centre to its cell's centre, so the error is a sawtooth of u with the
 /// cell width w as period. The table goes to the *nominal* tip, so u is the arm's error there —
 /// a smooth function of the pose — and the sawtooth of a smooth function is itself structured:
-/// smooth candidates and the unnamed bases would pick up part of it. The columns are
+/// smooth candidates and the shape bases would pick up part of it. The columns are
 /// sin(2πk·û/w) and cos(2πk·û/w), k = 1..[`QUANTISATION_HARMONICS`], on the x and the y rows,
 /// û the offset the fitted model predicts (modelled tip − panel centre, the panel centre being
 /// the table-frame point minus the reported (u, v)). Empty when the recording is not quantised

@@ -1,14 +1,16 @@
 //! One round of the diagnosis on a standard fit (steps 2 to 7 of the module documentation of
-//! [`super`]): screen → select → what is left → refit → effects → outliers, then the report.
+//! [`super`]): screen → select (library and shapes) → what is left → refit → effects → the
+//! discrepancy term → outliers, then the report.
 //!
 //! Error budget, α = [`ALPHA`](super::ALPHA) overall, split in three equal parts
 //! ([`ALPHA_PART`](super::screen::ALPHA_PART)): the candidate steps (Bonferroni over the
-//! candidates remaining at each step), the unnamed bases (Bonferroni over the bases) and the
-//! final lack-of-fit test against pure error.
+//! candidates remaining at each step), the shape bases (Bonferroni over the bases, and only when
+//! sizeable) and the final lack-of-fit test against pure error.
 //!
 //! Units: stacked residuals in mm (3 rows per measurement); coefficients in each candidate's
 //! units (see the candidate files).
 
+use super::discrepancy::describe;
 use super::effects::{describe_effects, EffectInputs};
 use super::heldout::{Heldout, HeldoutRecording};
 use super::linalg::rms3;
@@ -16,7 +18,7 @@ use super::outliers::judge_outliers;
 use super::refit::{refit, Refit};
 use super::report::{locate, FitSummary, Mismatch, Report, WhereReport};
 use super::screen::{mismatch_remains, screen, Screen};
-use super::select::{forward_selection, project_candidates, Selection};
+use super::select::{build_shapes, forward_selection, project_candidates, Selection};
 use super::unnamed::{test_leftover, Leftover};
 use super::{Candidate, DiagnoseError, Standard, MIN_PURE_ERROR_DOF};
 use crate::identification::outliers::Outlier;
@@ -32,20 +34,29 @@ pub fn run(
 ) -> Result<(Report, Vec<Outlier>), DiagnoseError> {
     let screen = screen(std)?;
     let candidates = project_candidates(&screen, lib, &std.data);
-    let selection = forward_selection(&screen, &candidates);
-    let leftover = test_leftover(std, &screen, &selection);
+    let mut shapes = build_shapes(&screen, &std.data);
+    let selection = forward_selection(&screen, &candidates, &mut shapes, &std.data);
+    let leftover = test_leftover(std, &screen, &selection, &shapes);
     let significant = mismatch_remains(&screen, &selection, &leftover);
-    let refit = refit(std, &screen, &selection);
+    let named = refit(std, &screen, &selection, false);
+    let full = refit(std, &screen, &selection, true);
     let inputs = EffectInputs {
         std,
         screen: &screen,
         candidates: &candidates,
         selection: &selection,
-        refit: &refit,
+        refit: &full,
     };
     let effects = describe_effects(&inputs, lib, heldout);
+    let described = describe(&inputs, lib, heldout, rms3(&named.residual));
     let mut notes = notes(std);
-    let outliers = match judge_outliers(std, &refit) {
+    notes.extend(selection.dropped.iter().map(|&k| {
+        format!(
+            "{} was not claimed: it only soaked up part of a shape outside the library (the located shape explains what it fitted)",
+            lib[k].label()
+        )
+    }));
+    let outliers = match judge_outliers(std, &full) {
         Ok(found) => found,
         Err(e) => {
             notes.push(format!("outliers not removed: {e}"));
@@ -55,12 +66,14 @@ pub fn run(
     let report = Report {
         notes,
         outliers: Vec::new(),
-        mismatch: mismatch(std, &screen, &selection, &refit, lib, significant),
+        mismatch: mismatch(std, &screen, &selection, &full, lib, significant),
         unexplained: leftover.unexplained(),
         unexplained_where: unexplained_where(std, &leftover),
+        out_of_library: described.shapes,
+        discrepancy: described.report,
         effects: effects.reports,
         absorbed: candidates.absorbed,
-        fit: fit_summary(std, &screen, &refit, effects.heldout),
+        fit: fit_summary(std, &screen, &named, effects.heldout),
     };
     Ok((report, outliers))
 }
@@ -160,4 +173,21 @@ fn fit_summary(std: &Standard, screen: &Screen, refit: &Refit, heldout: Heldout)
         heldout_after_rms_mm: heldout.after,
         heldout: heldout.what,
     }
+}
+
+/// The library effects and shapes forward selection chooses on a standard fit, without the
+/// report: what [`super::outliers::outliers_against_structure`] judges rows against.
+pub fn select_terms(
+    std: &Standard,
+    lib: &[Box<dyn Candidate>],
+) -> Result<Selection, DiagnoseError> {
+    let screen = screen(std)?;
+    let candidates = project_candidates(&screen, lib, &std.data);
+    let mut shapes = build_shapes(&screen, &std.data);
+    Ok(forward_selection(
+        &screen,
+        &candidates,
+        &mut shapes,
+        &std.data,
+    ))
 }

@@ -1,5 +1,6 @@
-//! Stage 3, the refit: geometry and the chosen effects together, linear about the geometric fit
-//! (unweighted), and the noise floor the report states.
+//! Stage 3, the refit: geometry, the chosen effects and (for the full model) the discrepancy
+//! term's shapes together, linear about the geometric fit (unweighted), and the noise floor the
+//! report states.
 //!
 //! Units: stacked residuals in mm (3 rows per measurement).
 
@@ -12,7 +13,8 @@ use nalgebra::{DMatrix, DVector};
 /// The refitted model.
 #[derive(Debug, Clone)]
 pub struct Refit {
-    /// Its design matrix: the geometric Jacobian, then each chosen effect's columns in order.
+    /// Its design matrix: the geometric Jacobian, then each chosen effect's columns in order,
+    /// then (the full model) each chosen shape's columns in order.
     pub design: DMatrix<f64>,
     /// The least-squares fit of the geometric residual on `design`.
     pub fit: LeastSquares,
@@ -27,10 +29,13 @@ pub struct Refit {
     pub noise_floor: f64,
 }
 
-/// Refits the geometry with the chosen effects.
-pub fn refit(std: &Standard, screen: &Screen, sel: &Selection) -> Refit {
+/// Refits the geometry with the chosen effects and, when `with_shapes`, the chosen shapes.
+pub fn refit(std: &Standard, screen: &Screen, sel: &Selection, with_shapes: bool) -> Refit {
     let mut cols: Vec<DMatrix<f64>> = vec![std.jacobian.clone()];
     cols.extend(sel.chosen.iter().map(|c| c.x.clone()));
+    if with_shapes {
+        cols.extend(sel.shapes.iter().map(|c| c.x.clone()));
+    }
     let design = hcat(&cols, screen.rows());
     let fit = lstsq(&design, &std.residual);
     let residual = &std.residual - &design * &fit.solution;

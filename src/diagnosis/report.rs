@@ -4,6 +4,7 @@
 //! Units: mm for sizes and RMS (3-D RMS over measurements), degrees for joint ranges.
 
 use super::compliance::unit_torques;
+use super::discrepancy::{DiscrepancyReport, ShapeReport};
 use super::{Data, AXES};
 use crate::kinematics::{JointKind, Robot};
 use nalgebra::DVector;
@@ -22,6 +23,15 @@ pub struct Report {
     pub unexplained: bool,
     /// Where the unexplained residual is.
     pub unexplained_where: Vec<WhereReport>,
+    /// The unexplained residual described by its shape: one entry per located shape (what it
+    /// depends on, localised or periodic, where, size ± σ). Empty when nothing is unexplained
+    /// or the structure could not be located (the lack of fit alone).
+    #[serde(default)]
+    pub out_of_library: Vec<ShapeReport>,
+    /// The smooth discrepancy term fitted in the located variables, apart from the named
+    /// effects: its RMS on the fitted and held-out data with and without it.
+    #[serde(default)]
+    pub discrepancy: Option<DiscrepancyReport>,
     /// Candidates the geometry absorbs entirely (visible fraction below 1e-3).
     pub absorbed: Vec<String>,
     /// RMS before and after.
@@ -344,6 +354,16 @@ impl Report {
             for w in &self.unexplained_where {
                 let _ = writeln!(s, "  where: {}", w.description);
             }
+            for o in &self.out_of_library {
+                let _ = writeln!(
+                    s,
+                    "  not in the library: {} (p = {:.1e}; fitted with {})",
+                    o.description, o.p_value, o.basis
+                );
+            }
+        }
+        if let Some(d) = &self.discrepancy {
+            d.write_text(&mut s);
         }
         for o in &self.outliers {
             let line = o.line.map(|l| format!(", line {l}")).unwrap_or_default();
@@ -407,6 +427,25 @@ impl Report {
             for w in &m.where_ {
                 let _ = writeln!(s, "  where: {}", w.description);
             }
+        }
+    }
+}
+
+impl DiscrepancyReport {
+    /// Appends the discrepancy term as text.
+    fn write_text(&self, s: &mut String) {
+        let _ = writeln!(
+            s,
+            "discrepancy term (a smooth fit of the unexplained shape, not physics; apart from the named effects): {} coefficient(s); RMS on the fitted data {:.4} mm with the named effects, {:.4} mm with the term",
+            self.columns, self.rms_without_mm, self.rms_with_mm
+        );
+        if let (Some(a), Some(b)) = (self.heldout_rms_without_mm, self.heldout_rms_with_mm) {
+            let _ = writeln!(
+                s,
+                "  held out ({}): {a:.4} mm with the named effects, {b:.4} mm with the term ({:+.4} mm)",
+                self.heldout,
+                b - a
+            );
         }
     }
 }

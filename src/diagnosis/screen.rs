@@ -12,7 +12,7 @@ use super::unnamed::Leftover;
 use super::{DiagnoseError, Standard, ALPHA, MIN_PURE_ERROR_DOF};
 use nalgebra::{DMatrix, DVector};
 
-/// Each third of the error budget [`ALPHA`]: the candidate steps, the unnamed bases and the
+/// Each third of the error budget [`ALPHA`]: the candidate steps, the shape bases and the
 /// final lack-of-fit test (module documentation of [`super::select`]).
 pub const ALPHA_PART: f64 = ALPHA / 3.0;
 
@@ -48,6 +48,21 @@ impl Screen {
     /// Rows of the stacked residual (3 per measurement).
     pub fn rows(&self) -> usize {
         self.residual_raw.len()
+    }
+
+    /// The noise variance per coordinate in the tests' weighted units (mm²), when pure error
+    /// gives it: the weights scale every axis to the pure-error variance of the unquantised
+    /// coordinates, so it is the pure-error σ². None without enough repeated poses (the tests
+    /// then use the residual variance of the model at hand).
+    pub fn noise_var(&self) -> Option<f64> {
+        self.use_pure_error.then(|| {
+            self.pure_error.sigma().powi(2) + if self.weighted() { 0.0 } else { self.extra_var }
+        })
+    }
+
+    /// Whether the rows are weighted (the instrument's known variance differs by axis).
+    pub fn weighted(&self) -> bool {
+        self.weights.iter().any(|w| *w != 1.0)
     }
 }
 

@@ -4,12 +4,18 @@
 //! [`ALPHA_PART`]. A candidate too close to one already chosen (not separable from it) is
 //! skipped: its coefficients would fight the chosen one's in the refit.
 //!
+//! The flexible shape bases of [`super::shapes`] compete in the same selection (Bonferroni over
+//! the bases, the second part of the budget) and must also be *sizeable*, [`SHAPE_MIN_SIZE`] of
+//! the noise floor: a library effect is claimed only when no shape explains the residual better,
+//! and a library term that a chosen shape makes redundant is dropped ([`forward_selection`]).
+//!
 //! Units: stacked regressors in mm per unit coefficient (3 rows per measurement).
 
-use super::linalg::{orth_basis, partial_f, visible_basis};
+use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
 use super::screen::{Screen, ALPHA_PART};
+use super::shapes::{refine_position, shape_bases, Form, ShapeSpec};
 use super::{Candidate, Data, SEPARABLE_CORRELATION};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// The candidate library over one recording, seen past the standard model.
 #[derive(Debug, Clone)]
@@ -73,86 +79,430 @@ pub struct Chosen {
     pub visible: f64,
 }
 
+/// The shape bases of a recording ([`super::shapes`]), with their columns.
+#[derive(Debug, Clone)]
+pub struct Shapes {
+    /// The bases.
+    pub specs: Vec<ShapeSpec>,
+    /// Their columns, unweighted; None when the recording cannot show one.
+    pub regressors: Vec<Option<DMatrix<f64>>>,
+    /// The same with the tests' row weights.
+    pub weighted: Vec<Option<DMatrix<f64>>>,
+}
+
+impl Shapes {
+    /// Bases with columns: the Bonferroni count of the shape tests.
+    pub fn testable(&self) -> usize {
+        self.weighted.iter().filter(|w| w.is_some()).count().max(1)
+    }
+}
+
+impl Shapes {
+    /// Adds a basis.
+    pub fn push(&mut self, spec: ShapeSpec, d: &Data, screen: &Screen) {
+        let x = spec.columns(d);
+        self.weighted.push(x.as_ref().map(|x| screen.weigh(x)));
+        self.regressors.push(x);
+        self.specs.push(spec);
+    }
+}
+
+/// A finer position basis where the chosen position shape `k` (test `t` against the model
+/// leaving `residual`) is largest ([`refine_position`]).
+fn refinement(
+    screen: &Screen,
+    shapes: &Shapes,
+    k: usize,
+    t: &TermTest,
+    residual: &DVector<f64>,
+    d: &Data,
+) -> Option<ShapeSpec> {
+    let Form::Radial { width_mm, .. } = &shapes.specs[k].form else {
+        return None;
+    };
+    let fitted = &t.u * (t.u.transpose() * residual);
+    let w = &screen.weights;
+    let size: Vec<f64> = (0..d.len())
+        .map(|i| {
+            (0..3)
+                .map(|a| (fitted[3 * i + a] / w[3 * i + a].max(1e-300)).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect();
+    refine_position(d, &size, *width_mm)
+}
+
+/// Builds the shape bases of `d` and their columns.
+pub fn build_shapes(screen: &Screen, d: &Data) -> Shapes {
+    let specs = shape_bases(d);
+    let regressors: Vec<Option<DMatrix<f64>>> = specs.iter().map(|s| s.columns(d)).collect();
+    let weighted = regressors
+        .iter()
+        .map(|x| x.as_ref().map(|x| screen.weigh(x)))
+        .collect();
+    Shapes {
+        specs,
+        regressors,
+        weighted,
+    }
+}
+
+/// A shape basis forward selection chose: a structured residual no library candidate explains.
+#[derive(Debug, Clone)]
+pub struct ChosenShape {
+    /// Its index in [`Shapes::specs`].
+    pub shape: usize,
+    /// The basis.
+    pub spec: ShapeSpec,
+    /// Its columns, unweighted.
+    pub x: DMatrix<f64>,
+    /// Its partial F-test p-value when chosen (before Bonferroni).
+    pub p: f64,
+    /// Its debiased size ÷ the noise floor when chosen.
+    pub size_ratio: f64,
+}
+
 /// What forward selection found.
 #[derive(Debug, Clone)]
 pub struct Selection {
     /// The chosen effects, in the order chosen.
     pub chosen: Vec<Chosen>,
+    /// The chosen shape bases (the discrepancy term), in the order chosen.
+    pub shapes: Vec<ChosenShape>,
+    /// Library candidates chosen at first and dropped once a shape explained what they did:
+    /// they only soaked up part of an unknown shape.
+    pub dropped: Vec<usize>,
     /// The best candidate of the first step and its p-value, chosen or not.
     pub first_best: Option<(usize, f64)>,
-    /// Orthonormal basis of the weighted standard model and the chosen effects.
+    /// Orthonormal basis of the weighted standard model, the chosen effects and shapes.
     pub basis: DMatrix<f64>,
     /// What that model leaves of the weighted residual.
     pub residual: DVector<f64>,
 }
 
-/// Forward selection: at each step the remaining candidate with the smallest partial F-test
-/// p-value joins the model while that p-value is below [`ALPHA_PART`] ÷ (candidates remaining).
-pub fn forward_selection(screen: &Screen, cands: &Candidates) -> Selection {
+/// A structured residual is sizeable when its debiased RMS reaches this fraction of the noise
+/// floor: below it the model is at the floor whatever a test over thousands of degrees of
+/// freedom says (a 10× effect's small mismatch with its candidate is significant and harmless;
+/// held-out RMS within 1.2× the floor allows about 0.6×).
+pub const SHAPE_MIN_SIZE: f64 = 0.3;
+
+/// At most this many shape bases make up the discrepancy term.
+pub const MAX_SHAPES: usize = 4;
+
+/// The debiased size of a term ÷ the noise floor: √(max(0, ΔSS − k·s²) / m) ÷ √(3·s²), with s²
+/// the noise variance per coordinate and m the measurements (ΔSS in the tests' weighted units).
+pub fn size_ratio(dss: f64, k: usize, s2: f64, measurements: usize) -> f64 {
+    let s2 = s2.max(1e-300);
+    let excess = (dss - k as f64 * s2).max(0.0);
+    (excess / measurements.max(1) as f64).sqrt() / (3.0 * s2).sqrt()
+}
+
+/// One term's test against a model: (p, ln p, ΔSS, its part past the model, size ÷ floor).
+#[derive(Debug, Clone)]
+struct TermTest {
+    p: f64,
+    ln_p: f64,
+    u: DMatrix<f64>,
+    size: f64,
+}
+
+/// Tests the weighted columns `x` against the model `basis` leaving `residual`.
+fn term_test(
+    screen: &Screen,
+    basis: &DMatrix<f64>,
+    residual: &DVector<f64>,
+    x: &DMatrix<f64>,
+) -> Option<TermTest> {
+    let (u, _) = visible_basis(basis, x)?;
+    let dof = residual.len().saturating_sub(basis.ncols());
+    let (p, ln_p, dss) = partial_f_ln(&u, residual, dof);
+    let k = u.ncols();
+    let s2 = screen.noise_var().unwrap_or_else(|| {
+        (residual.norm_squared() - dss).max(0.0) / dof.saturating_sub(k).max(1) as f64
+    });
+    let size = size_ratio(dss, k, s2, residual.len() / 3);
+    Some(TermTest { p, ln_p, u, size })
+}
+
+/// Forward selection over the library and the shape bases: at each step the term with the
+/// smallest p-value (compared as ln p, so huge effects do not tie at 0) joins the model, among
+/// the library candidates whose p-value is below [`ALPHA_PART`] ÷ (candidates remaining) and the
+/// shapes whose p-value is below [`ALPHA_PART`] ÷ (shape bases) and whose size reaches
+/// [`SHAPE_MIN_SIZE`] of the floor. A library term explains a few columns' worth of a shape, a
+/// shape many: a library effect the data show exactly wins on p-value, an unknown shape wins
+/// over the library terms that each soak up part of it. When a shape joined, every term is then
+/// tested again given all the others and the least significant that fails is dropped, until none
+/// fails ([`prune`]): library terms chosen before the shape that only soaked it up go.
+pub fn forward_selection(
+    screen: &Screen,
+    cands: &Candidates,
+    shapes: &mut Shapes,
+    d: &Data,
+) -> Selection {
     let nrows = screen.rows();
     let mut remaining = cands.testable.clone();
+    let mut remaining_shapes: Vec<usize> = (0..shapes.specs.len())
+        .filter(|&k| shapes.weighted[k].is_some())
+        .collect();
+    let nb = shapes.testable() as f64;
     let mut sel = Selection {
         chosen: Vec::new(),
+        shapes: Vec::new(),
+        dropped: Vec::new(),
         first_best: None,
         basis: screen.basis.clone(),
         residual: screen.residual.clone(),
     };
     // Orthonormal basis of the chosen effects' visible parts, for the separability check.
     let mut chosen_visible = DMatrix::zeros(nrows, 0);
-    while !remaining.is_empty() {
-        let kk = remaining.len() as f64;
-        let Some((k, p, u)) = best_step(&sel, cands, &remaining, &chosen_visible) else {
-            break;
+    let mut first = true;
+    loop {
+        let kk = remaining.len().max(1) as f64;
+        let lib = best_step(screen, &sel, cands, &remaining, &chosen_visible);
+        if first {
+            sel.first_best = lib.as_ref().map(|(k, t)| (*k, t.p));
+            first = false;
+        }
+        let lib = lib.filter(|(_, t)| t.p < ALPHA_PART / kk);
+        let shape = if sel.shapes.len() < MAX_SHAPES {
+            best_shape(screen, &sel, shapes, &remaining_shapes, nb)
+        } else {
+            None
         };
-        if sel.first_best.is_none() {
-            sel.first_best = Some((k, p));
+        let take_shape = match (&lib, &shape) {
+            (None, None) => break,
+            (Some(_), None) => false,
+            (None, Some(_)) => true,
+            (Some((_, a)), Some((_, b))) => b.ln_p < a.ln_p,
+        };
+        if take_shape {
+            let Some((k, t)) = shape else { break };
+            let fine = refinement(screen, shapes, k, &t, &sel.residual, d);
+            tracing::debug!(refined = ?fine.as_ref().map(ShapeSpec::label), "refinement");
+            if let Some(fine) = fine {
+                remaining_shapes.push(shapes.specs.len());
+                shapes.push(fine, d, screen);
+            }
+            add_direction(&mut sel, &t.u);
+            remaining_shapes.retain(|&c| c != k);
+            tracing::debug!(shape = %shapes.specs[k].label(), p = t.p, ln_p = t.ln_p, size = t.size, "shape chosen");
+            sel.shapes.push(ChosenShape {
+                shape: k,
+                spec: shapes.specs[k].clone(),
+                x: shapes.regressors[k]
+                    .clone()
+                    .unwrap_or_else(|| DMatrix::zeros(nrows, 0)),
+                p: t.p,
+                size_ratio: t.size,
+            });
+        } else {
+            let Some((k, t)) = lib else { break };
+            add_direction(&mut sel, &t.u);
+            if let Some(bk) = &cands.visible_basis[k] {
+                let cols: Vec<_> = chosen_visible
+                    .column_iter()
+                    .chain(bk.column_iter())
+                    .collect();
+                chosen_visible = orth_basis(&DMatrix::from_columns(&cols), 1e-6);
+            }
+            remaining.retain(|&c| c != k);
+            tracing::debug!(
+                candidate = k,
+                p = t.p,
+                ln_p = t.ln_p,
+                size = t.size,
+                "candidate chosen"
+            );
+            sel.chosen.push(Chosen {
+                cand: k,
+                x: cands.regressors[k]
+                    .clone()
+                    .unwrap_or_else(|| DMatrix::zeros(nrows, 0)),
+                p: t.p,
+                visible: cands.visible[k],
+            });
         }
-        if p >= ALPHA_PART / kk {
-            break;
-        }
-        sel.residual = &sel.residual - &u * (u.transpose() * &sel.residual);
-        sel.basis = DMatrix::from_columns(
-            &sel.basis
-                .column_iter()
-                .chain(u.column_iter())
-                .collect::<Vec<_>>(),
-        );
-        if let Some(bk) = &cands.visible_basis[k] {
-            let cols: Vec<_> = chosen_visible
-                .column_iter()
-                .chain(bk.column_iter())
-                .collect();
-            chosen_visible = orth_basis(&DMatrix::from_columns(&cols), 1e-6);
-        }
-        remaining.retain(|&c| c != k);
-        sel.chosen.push(Chosen {
-            cand: k,
-            x: cands.regressors[k]
-                .clone()
-                .unwrap_or_else(|| DMatrix::zeros(nrows, 0)),
-            p,
-            visible: cands.visible[k],
-        });
+    }
+    if !sel.shapes.is_empty() {
+        prune(screen, &mut sel, cands, shapes);
     }
     sel
 }
 
-/// The remaining candidate that best explains what the model of `sel` leaves: (index, p-value,
-/// orthonormal basis of its part past the model). Candidates not separable from the chosen
-/// ones (`chosen_visible`) are skipped.
+/// Adds the orthonormal direction(s) `u` (orthogonal to the model) to the selection's model.
+fn add_direction(sel: &mut Selection, u: &DMatrix<f64>) {
+    sel.residual = &sel.residual - u * (u.transpose() * &sel.residual);
+    sel.basis = DMatrix::from_columns(
+        &sel.basis
+            .column_iter()
+            .chain(u.column_iter())
+            .collect::<Vec<_>>(),
+    );
+}
+
+/// The weighted columns of every chosen term but number `skip` (library terms first, then
+/// shapes), beside the standard model.
+fn model_without(
+    screen: &Screen,
+    sel: &Selection,
+    cands: &Candidates,
+    shapes: &Shapes,
+    skip: Option<usize>,
+) -> DMatrix<f64> {
+    let mut blocks = vec![screen.basis.clone()];
+    let lib = sel
+        .chosen
+        .iter()
+        .filter_map(|c| cands.weighted[c.cand].clone());
+    let shp = sel
+        .shapes
+        .iter()
+        .filter_map(|c| shapes.weighted[c.shape].clone());
+    for (i, b) in lib.chain(shp).enumerate() {
+        if Some(i) != skip {
+            blocks.push(b);
+        }
+    }
+    orth_basis(&hcat(&blocks, screen.rows()), 1e-9)
+}
+
+/// Tests every chosen term given all the others and drops the least significant one that fails
+/// (a library term: p at or above [`ALPHA_PART`] ÷ its candidates; a shape: that or a size
+/// below [`SHAPE_MIN_SIZE`]), until none fails; then rebuilds the selection's model.
+fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shapes) {
+    let kk = cands.testable.len().max(1) as f64;
+    let nb = shapes.testable() as f64;
+    let rw = &screen.residual;
+    loop {
+        let nlib = sel.chosen.len();
+        let mut worst: Option<(usize, f64)> = None;
+        for i in 0..nlib + sel.shapes.len() {
+            let q = model_without(screen, sel, cands, shapes, Some(i));
+            let r = rw - &q * (q.transpose() * rw);
+            let x = if i < nlib {
+                cands.weighted[sel.chosen[i].cand].as_ref()
+            } else {
+                shapes.weighted[sel.shapes[i - nlib].shape].as_ref()
+            };
+            let fails = match x.and_then(|x| term_test(screen, &q, &r, x)) {
+                None => Some(0.0),
+                Some(t) if i < nlib => (t.p >= ALPHA_PART / kk).then_some(t.ln_p),
+                Some(t) => (t.p >= ALPHA_PART / nb || t.size < SHAPE_MIN_SIZE).then_some(t.ln_p),
+            };
+            if let Some(lp) = fails {
+                if worst.is_none_or(|w| lp > w.1) {
+                    worst = Some((i, lp));
+                }
+            }
+        }
+        let Some((i, _)) = worst else { break };
+        if i < nlib {
+            let c = sel.chosen.remove(i);
+            tracing::debug!(candidate = c.cand, "dropped: a shape explains it");
+            sel.dropped.push(c.cand);
+        } else {
+            sel.shapes.remove(i - nlib);
+        }
+    }
+    let q = model_without(screen, sel, cands, shapes, None);
+    sel.residual = rw - &q * (q.transpose() * rw);
+    sel.basis = q;
+}
+
+/// The remaining shape basis with the smallest p-value against the model of `sel` among the
+/// eligible ones: p-value below [`ALPHA_PART`] ÷ `nb`, size at least [`SHAPE_MIN_SIZE`], and
+/// a smaller leave-one-measurement-out prediction error ([`press`]) than without it. The last
+/// keeps a flexible basis from fitting a few gross rows (they are the outlier judgement's) or
+/// the noise of a small recording: a row only its own coefficients explain is predicted no
+/// better without it.
+fn best_shape(
+    screen: &Screen,
+    sel: &Selection,
+    shapes: &Shapes,
+    remaining: &[usize],
+    nb: f64,
+) -> Option<(usize, TermTest)> {
+    let mut best: Option<(usize, TermTest)> = None;
+    let mut press_now: Option<(Vec<Matrix3<f64>>, f64)> = None;
+    let columns_left = (sel.residual.len().saturating_sub(sel.basis.ncols()) / 3)
+        .saturating_sub(sel.shapes.iter().map(|c| c.x.ncols()).sum());
+    for &k in remaining {
+        let Some(x) = &shapes.weighted[k] else {
+            continue;
+        };
+        let Some(t) = term_test(screen, &sel.basis, &sel.residual, x) else {
+            continue;
+        };
+        tracing::trace!(shape = %shapes.specs[k].label(), p = t.p, ln_p = t.ln_p, size = t.size, "shape basis");
+        if t.p >= ALPHA_PART / nb || t.size < SHAPE_MIN_SIZE || t.u.ncols() > columns_left {
+            continue;
+        }
+        if best.as_ref().is_some_and(|b| t.ln_p >= b.1.ln_p) {
+            continue;
+        }
+        let (hat, before) = press_now.get_or_insert_with(|| {
+            let hat = hat_blocks(&sel.basis);
+            let before = press(&hat, &sel.residual);
+            (hat, before)
+        });
+        let before = *before;
+        let with: Vec<Matrix3<f64>> = hat
+            .iter()
+            .zip(hat_blocks(&t.u))
+            .map(|(a, b)| a + b)
+            .collect();
+        let r = &sel.residual - &t.u * (t.u.transpose() * &sel.residual);
+        let after = press(&with, &r);
+        tracing::trace!(shape = %shapes.specs[k].label(), before, after, "shape PRESS");
+        if after < before {
+            best = Some((k, t));
+        }
+    }
+    best
+}
+
+/// The 3 × 3 diagonal blocks H_ii = Q_i Q_iᵀ of the hat matrix of the orthonormal basis `q`,
+/// one per measurement (the blocks of orthogonal bases side by side add).
+pub fn hat_blocks(q: &DMatrix<f64>) -> Vec<Matrix3<f64>> {
+    (0..q.nrows() / 3)
+        .map(|i| {
+            let b = q.rows(3 * i, 3);
+            let h = b * b.transpose();
+            Matrix3::from_fn(|r, c| h[(r, c)])
+        })
+        .collect()
+}
+
+/// The leave-one-measurement-out prediction error (PRESS) of a model with hat blocks `hat`
+/// ([`hat_blocks`]) and residual `r`: Σ_i ‖(I − H_ii)⁻¹ r_i‖². A measurement the model can only
+/// fit with its own coefficients (leverage near 1) counts as unpredicted.
+pub fn press(hat: &[Matrix3<f64>], r: &DVector<f64>) -> f64 {
+    let mut total = 0.0;
+    for (i, h) in hat.iter().enumerate() {
+        let m = Matrix3::identity() - h;
+        let e = nalgebra::Vector3::new(r[3 * i], r[3 * i + 1], r[3 * i + 2]);
+        total += match m.try_inverse() {
+            Some(inv) if inv.norm() < 1e6 => (inv * e).norm_squared(),
+            _ => 1e12 * e.norm_squared(),
+        };
+    }
+    total
+}
+
+/// The remaining candidate that best explains what the model of `sel` leaves (smallest p-value,
+/// compared as ln p). Candidates not separable from the chosen ones (`chosen_visible`) are
+/// skipped.
 fn best_step(
+    screen: &Screen,
     sel: &Selection,
     cands: &Candidates,
     remaining: &[usize],
     chosen_visible: &DMatrix<f64>,
-) -> Option<(usize, f64, DMatrix<f64>)> {
-    let dof = sel.residual.len() - sel.basis.ncols();
-    let mut best: Option<(usize, f64, DMatrix<f64>)> = None;
+) -> Option<(usize, TermTest)> {
+    let mut best: Option<(usize, TermTest)> = None;
     for &k in remaining {
         let Some(x) = &cands.weighted[k] else {
-            continue;
-        };
-        let Some((u, _)) = visible_basis(&sel.basis, x) else {
             continue;
         };
         // Some combination of it is (nearly) one of the chosen effects: not separable, and
@@ -162,9 +512,11 @@ fn best_step(
                 continue;
             }
         }
-        let (p, _) = partial_f(&u, &sel.residual, dof);
-        if best.as_ref().is_none_or(|b| p < b.1) {
-            best = Some((k, p, u));
+        let Some(t) = term_test(screen, &sel.basis, &sel.residual, x) else {
+            continue;
+        };
+        if best.as_ref().is_none_or(|b| t.ln_p < b.1.ln_p) {
+            best = Some((k, t));
         }
     }
     best

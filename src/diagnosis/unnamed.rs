@@ -1,151 +1,119 @@
-//! Stage 2b, what is left: the residual after the named effects tested against flexible unnamed
-//! bases (Bonferroni over the bases, at [`ALPHA_PART`]) and, with pure error, the final lack of
-//! fit. Either failing makes the report say `unexplained` and where.
+//! Stage 2b, what is left: the structure no library candidate explains. Forward selection
+//! ([`super::select`]) already took the shapes it could locate; this stage collects them, tests
+//! what is left after them (more shapes than [`MAX_SHAPES`], and, with pure error, the final lack
+//! of fit), and keeps only what is *sizeable* — at least [`SHAPE_MIN_SIZE`] of the noise floor
+//! by a debiased estimate — so that a large effect whose residual after naming is at the floor is
+//! never flagged for a mismatch a test over thousands of degrees of freedom finds significant.
+//! Anything left makes the report say `unexplained` and where.
 //!
 //! Units: stacked residuals in mm (3 rows per measurement).
 
-use super::linalg::{hcat, orth_basis, partial_f, visible_basis};
+use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
 use super::noise::lack_of_fit;
 use super::screen::{Screen, ALPHA_PART};
-use super::select::Selection;
-use super::{Data, Standard};
-use crate::kinematics::Robot;
-use nalgebra::{DMatrix, DVector};
+use super::select::{size_ratio, Selection, Shapes, MAX_SHAPES, SHAPE_MIN_SIZE};
+use super::Standard;
+use nalgebra::DVector;
 
 /// What the named effects leave.
 #[derive(Debug, Clone)]
 pub struct Leftover {
-    /// What explains the rest (an unnamed basis, or the lack of fit), with its p-value; empty
-    /// when nothing does.
+    /// What explains the rest (a located shape, structure beyond the shapes, or the lack of
+    /// fit), with its p-value; empty when nothing does.
     pub unexplained_by: Vec<(String, f64)>,
-    /// The residual after geometry, nuisance and the named effects, unweighted (mm).
+    /// The residual after geometry, nuisance and the named effects, unweighted (mm): the
+    /// structure the shapes describe.
     pub residual_raw: DVector<f64>,
+    /// The residual after the shapes too, unweighted (mm).
+    pub final_residual_raw: DVector<f64>,
+    /// The lack of fit of the final model against pure error, when it is sizeable and
+    /// significant: (p-value, size ÷ floor).
+    pub lack_of_fit: Option<(f64, f64)>,
 }
 
 impl Leftover {
-    /// A significant structured residual remains that no candidate explains.
+    /// A significant, sizeable structured residual remains that no candidate explains.
     pub fn unexplained(&self) -> bool {
         !self.unexplained_by.is_empty()
     }
 }
 
-/// Tests what the selection leaves against the unnamed bases of `d` and, with pure error,
-/// against the repeatability of the reference poses.
-pub fn test_leftover(std: &Standard, screen: &Screen, sel: &Selection) -> Leftover {
-    let d = &std.data;
+/// Collects the chosen shapes and tests what the final model of `sel` leaves: further shape
+/// bases when [`MAX_SHAPES`] were taken, and the repeatability of the reference poses.
+pub fn test_leftover(
+    std: &Standard,
+    screen: &Screen,
+    sel: &Selection,
+    shapes: &Shapes,
+) -> Leftover {
     let nrows = screen.rows();
-    let bases = unnamed_bases(d);
-    let nb = bases.len().max(1) as f64;
-    let dof_final = nrows - sel.basis.ncols();
-    let mut unexplained_by = Vec::new();
-    for (name, b) in &bases {
-        if let Some((u, _)) = visible_basis(&sel.basis, &screen.weigh(b)) {
-            let (p, dss) = partial_f(&u, &sel.residual, dof_final);
-            tracing::debug!(basis = %name, k = u.ncols(), p, dss, rss = sel.residual.norm_squared(), "unnamed basis");
-            if p < ALPHA_PART / nb {
-                unexplained_by.push((name.clone(), p));
+    let m = nrows / 3;
+    let dof_final = nrows.saturating_sub(sel.basis.ncols());
+    let mut unexplained_by: Vec<(String, f64)> =
+        sel.shapes.iter().map(|c| (c.spec.label(), c.p)).collect();
+    if sel.shapes.len() >= MAX_SHAPES {
+        let nb = shapes.testable() as f64;
+        for (k, x) in shapes.weighted.iter().enumerate() {
+            let Some(x) = x else { continue };
+            if sel.shapes.iter().any(|c| c.shape == k) {
+                continue;
+            }
+            let Some((u, _)) = visible_basis(&sel.basis, x) else {
+                continue;
+            };
+            let (p, _, dss) = partial_f_ln(&u, &sel.residual, dof_final);
+            let s2 = screen.noise_var().unwrap_or_else(|| {
+                (sel.residual.norm_squared() - dss).max(0.0)
+                    / dof_final.saturating_sub(u.ncols()).max(1) as f64
+            });
+            if p < ALPHA_PART / nb && size_ratio(dss, u.ncols(), s2, m) >= SHAPE_MIN_SIZE {
+                unexplained_by.push((format!("more structure: {}", shapes.specs[k].label()), p));
+                break;
             }
         }
     }
-    // What the named effects leave, unweighted.
-    let mut raw_cols = vec![screen.model.clone()];
-    raw_cols.extend(sel.chosen.iter().map(|c| c.x.clone()));
-    let q_raw = orth_basis(&hcat(&raw_cols, nrows), 1e-9);
-    let residual_raw = &std.residual - &q_raw * (q_raw.transpose() * &std.residual);
-    let lof_final = if screen.use_pure_error {
-        lack_of_fit(
-            &screen.pure_error,
-            residual_raw.norm_squared(),
-            dof_final,
-            screen.extra_var,
-        )
-    } else {
-        None
+    let raw = |with_shapes: bool| {
+        let mut cols = vec![screen.model.clone()];
+        cols.extend(sel.chosen.iter().map(|c| c.x.clone()));
+        if with_shapes {
+            cols.extend(sel.shapes.iter().map(|c| c.x.clone()));
+        }
+        let q = orth_basis(&hcat(&cols, nrows), 1e-9);
+        &std.residual - &q * (q.transpose() * &std.residual)
     };
-    if lof_final.is_some_and(|p| p < ALPHA_PART) && unexplained_by.is_empty() {
+    let residual_raw = raw(false);
+    let final_residual_raw = if sel.shapes.is_empty() {
+        residual_raw.clone()
+    } else {
+        raw(true)
+    };
+    let lack = final_lack_of_fit(screen, &final_residual_raw, dof_final);
+    if let (Some((p, _)), true) = (lack, unexplained_by.is_empty()) {
         unexplained_by.push((
             "structure beyond the repeatability of the reference poses".into(),
-            lof_final.unwrap_or(1.0),
+            p,
         ));
     }
     Leftover {
         unexplained_by,
         residual_raw,
+        final_residual_raw,
+        lack_of_fit: lack,
     }
 }
 
-/// The Legendre polynomial P_n(x) (three-term recurrence).
-fn legendre(x: f64, n: usize) -> f64 {
-    let (mut p0, mut p1) = (1.0, x);
-    if n == 0 {
-        return 1.0;
+/// The final lack-of-fit test against pure error, when it is significant at [`ALPHA_PART`] and
+/// sizeable: (p-value, size ÷ floor). The lack-of-fit sum of squares holds dof_lof·σ² of noise
+/// and the structure, so its debiased size compares with the floor like a shape's.
+fn final_lack_of_fit(screen: &Screen, r: &DVector<f64>, dof: usize) -> Option<(f64, f64)> {
+    if !screen.use_pure_error {
+        return None;
     }
-    for k in 1..n {
-        let k = k as f64;
-        let p2 = ((2.0 * k + 1.0) * x * p1 - k * p0) / (k + 1.0);
-        p0 = p1;
-        p1 = p2;
-    }
-    p1
-}
-
-/// `v` mapped linearly onto [−1, 1], where the Legendre polynomials are orthogonal.
-fn normalise(v: &[f64]) -> Vec<f64> {
-    let lo = v.iter().copied().fold(f64::MAX, f64::min);
-    let hi = v.iter().copied().fold(f64::MIN, f64::max);
-    let w = (hi - lo).max(1e-300);
-    v.iter().map(|x| 2.0 * (x - lo) / w - 1.0).collect()
-}
-
-/// Flexible unnamed bases: (name, columns). Per moving joint Legendre polynomials of degree 1–4
-/// on each axis, time polynomials of degree 1–3 on each axis, and a quadratic in the measured
-/// (modelled) position on each axis.
-pub fn unnamed_bases(d: &Data) -> Vec<(String, DMatrix<f64>)> {
-    let n = d.len();
-    let per_axis = |name: String, feats: Vec<Vec<f64>>| {
-        let mut m = DMatrix::zeros(3 * n, 3 * feats.len());
-        for (f, v) in feats.iter().enumerate() {
-            for i in 0..n {
-                for a in 0..3 {
-                    m[(3 * i + a, 3 * f + a)] = v[i];
-                }
-            }
-        }
-        (name, m)
-    };
-    let mut out = Vec::new();
-    for &j in &d.moving {
-        let x = normalise(&d.obs.iter().map(|o| o.q[j]).collect::<Vec<_>>());
-        let feats = (1..=4)
-            .map(|k| x.iter().map(|v| legendre(*v, k)).collect())
-            .collect();
-        out.push(per_axis(
-            format!("a smooth function of joint {}", j + 1),
-            feats,
-        ));
-    }
-    if let Some(t) = &d.t_s {
-        let x = normalise(t);
-        let feats = (1..=3)
-            .map(|k| x.iter().map(|v| legendre(*v, k)).collect())
-            .collect();
-        out.push(per_axis("a smooth function of time".into(), feats));
-    }
-    // Modelled, not measured, positions: measured ones carry the residual itself (the stacked
-    // positions lie in the span of the length parameters' columns).
-    let modelled: Vec<_> = d.obs.iter().map(|o| d.chain.position(&o.q, &d.e)).collect();
-    let p: Vec<Vec<f64>> = (0..3)
-        .map(|a| normalise(&modelled.iter().map(|m| m[a]).collect::<Vec<_>>()))
-        .collect();
-    let mut feats: Vec<Vec<f64>> = p.clone();
-    for a in 0..3 {
-        for b in a..3 {
-            feats.push((0..n).map(|i| p[a][i] * p[b][i]).collect());
-        }
-    }
-    out.push(per_axis(
-        "a smooth function of the workspace position".into(),
-        feats,
-    ));
-    out
+    let pe = &screen.pure_error;
+    let rss = r.norm_squared();
+    let p = lack_of_fit(pe, rss, dof, screen.extra_var)?;
+    let s2 = pe.sigma().powi(2) + screen.extra_var;
+    let dof_lof = dof.saturating_sub(pe.dof);
+    let size = size_ratio((rss - pe.ss).max(0.0), dof_lof, s2, r.len() / 3);
+    (p < ALPHA_PART && size >= SHAPE_MIN_SIZE).then_some((p, size))
 }

@@ -2,6 +2,11 @@
 //! ([`super::geometric`]), robust outlier removal that refits after each removal
 //! ([`super::outliers`]), and the fitted model's error on held-out recordings.
 //!
+//! Outliers are judged against the structure of the recording, not only against the geometry:
+//! when the geometric judgement flags rows, they are judged again against the model the
+//! diagnosis finds (geometry, named effects, discrepancy term), and only rows that fail there are
+//! removed. A clean recording with structured residuals keeps every row.
+//!
 //! The parameters returned are absolute (free frames included), for the rig's own chain, so a
 //! model file written from them stands alone.
 
@@ -85,7 +90,8 @@ pub enum IdentifyError {
 }
 
 /// Identifies a rig's error parameters from a recording at a level: outliers are found
-/// robustly and removed, each removal refitting the model without the row; more than
+/// robustly and removed, each removal refitting the model without the row, and judged again
+/// against the recording's structure when the geometry flags any; more than
 /// [`OutlierSettings::max_fraction`] of the rows failing removes nothing and sets
 /// [`Identification::outlier_warning`]. Then each held-out recording is checked.
 pub fn identify(
@@ -141,10 +147,118 @@ fn identify_robust(
     if level.candidates(rig).is_empty() {
         return Err(IdentifyError::NothingToFit { level });
     }
+    // The geometric judgement only decides whether any row looks off; the rows are then judged
+    // against the recording's structure ([`judge_against_structure`]), so it stops at the first.
+    match geometric_search(rig, rec, level, settings, true) {
+        Ok(Searched::Clean(fitted)) => {
+            let (chain, result) = *fitted;
+            Ok((chain, result, Vec::new(), None))
+        }
+        Ok(Searched::Flagged) => judge_against_structure(rig, rec, level, settings),
+        Err(e) => Err(e),
+    }
+}
+
+/// What the geometric outlier search found.
+enum Searched {
+    /// No row fails: the fit on every row.
+    Clean(Box<(SerialChain, FitResult)>),
+    /// Some row fails (or too many do).
+    Flagged,
+}
+
+/// Stops the geometric search at its first outlier.
+#[derive(Debug, thiserror::Error)]
+enum Probe {
+    #[error(transparent)]
+    Fit(IdentifyError),
+    #[error("a row failed the geometric judgement")]
+    Flagged,
+}
+
+/// Outliers judged against the geometric fit at `level`, each removal refitting without the row;
+/// with `stop_at_first` the search ends at the first row that fails.
+fn geometric_search(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+    settings: &OutlierSettings,
+    stop_at_first: bool,
+) -> Result<Searched, IdentifyError> {
+    let obs = rec.observations();
     let ids = measured_ids(rec);
     let mut last = None;
     let search = remove_outliers(&ids, settings, |kept| {
+        if stop_at_first && kept.len() < obs.len() {
+            return Err(Probe::Flagged);
+        }
         // The removed rows stay in the recording (joints, order), they are only not fitted.
+        let fitted: Vec<Observation> = kept.iter().map(|&i| obs[i].clone()).collect();
+        let (chain, result) = identify_at(rig, &fitted, level).map_err(Probe::Fit)?;
+        let residuals = errors(&chain, &obs, &result.params);
+        let p = result.free.len();
+        last = Some((chain, result));
+        Ok::<_, Probe>((residuals, p))
+    });
+    match search {
+        Ok((outliers, _)) if outliers.is_empty() => {
+            let (chain, result) = match last {
+                Some(fitted) => fitted,
+                None => identify_at(rig, &obs, level)?,
+            };
+            Ok(Searched::Clean(Box::new((chain, result))))
+        }
+        Ok(_) | Err(OutlierError::TooMany { .. }) | Err(OutlierError::Fit(Probe::Flagged)) => {
+            Ok(Searched::Flagged)
+        }
+        Err(OutlierError::Fit(Probe::Fit(e))) => Err(e),
+    }
+}
+
+/// The rows judged against the structure the diagnosis finds in the recording (every
+/// identifiable geometric parameter, the named effects and the discrepancy term:
+/// [`crate::diagnosis::outliers::outliers_against_structure`]), so that a clean recording whose
+/// residual is structured — its largest rows are structure, not gross errors — keeps every
+/// row; the fit at `level` is redone without the rows that fail. When the diagnosis cannot
+/// model the recording (too few rows, say) the judgement is the geometric one.
+fn judge_against_structure(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+    settings: &OutlierSettings,
+) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
+    let obs = rec.observations();
+    let (outliers, warning) =
+        match crate::diagnosis::outliers::outliers_against_structure(rig, rec, settings) {
+            Ok(Ok(found)) => (found, None),
+            Ok(Err(e)) => (Vec::new(), Some(e.to_string())),
+            Err(e) => {
+                tracing::debug!(%e, "outliers judged against the geometry only");
+                return geometric_only(rig, rec, level, settings);
+            }
+        };
+    let kept: Vec<Observation> = obs
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| !outliers.iter().any(|o| o.index == *i))
+        .map(|(_, o)| o.clone())
+        .collect();
+    let (chain, result) = identify_at(rig, &kept, level)?;
+    Ok((chain, result, outliers, warning))
+}
+
+/// The whole geometric judgement: rows removed one at a time with a refit, or nothing removed
+/// and a warning when more than the cap fail.
+fn geometric_only(
+    rig: &Rig,
+    rec: &Recording,
+    level: Level,
+    settings: &OutlierSettings,
+) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
+    let obs = rec.observations();
+    let ids = measured_ids(rec);
+    let mut last = None;
+    let search = remove_outliers(&ids, settings, |kept| {
         let fitted: Vec<Observation> = kept.iter().map(|&i| obs[i].clone()).collect();
         let (chain, result) = identify_at(rig, &fitted, level)?;
         let residuals = errors(&chain, &obs, &result.params);

@@ -1,3 +1,4 @@
 //! Test helpers shared by several integration tests.
 
+pub mod shapes;
 pub mod synthetic8;
