@@ -50,6 +50,6 @@ pub mod reproduce;
 pub mod rig;
 pub mod session;
 pub mod stats;
-pub mod twin;
 pub mod transports;
+pub mod twin;
 pub mod world;

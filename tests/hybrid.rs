@@ -7,11 +7,12 @@ use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
 use rigcal::compensation::hybrid::{Approach, HybridOptions};
 use rigcal::identification::{identify, random_poses, IdentifyOptions, Level};
+use rigcal::kinematics::Robot;
 use rigcal::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
+use rigcal::model::LoadedModel;
 use rigcal::model::{ModelFile, Provenance};
 use rigcal::recording::Target;
-use rigcal::twin::hybrid::{geometric_vs_effects, PathErrors};
-use rigcal::kinematics::Robot;
+use rigcal::twin::hybrid::{compensated_errors, PathErrors};
 use rigcal::world::Scenario;
 use std::path::{Path, PathBuf};
 
@@ -23,10 +24,19 @@ fn rig_with_masses() -> String {
     let text = std::fs::read_to_string("rigs/rv-m2-ideal.toml").expect("rig");
     let masses = [
         ("name = \"J1\"", "mass_kg = 0.5\ncom_mm = [0.0, 0.0, 0.0]\n"),
-        ("name = \"J2\"", "mass_kg = 3.5\ncom_mm = [-125.0, 0.0, 0.0]\n"),
-        ("name = \"J3\"", "mass_kg = 2.5\ncom_mm = [-130.0, 0.0, 0.0]\n"),
+        (
+            "name = \"J2\"",
+            "mass_kg = 3.5\ncom_mm = [-125.0, 0.0, 0.0]\n",
+        ),
+        (
+            "name = \"J3\"",
+            "mass_kg = 2.5\ncom_mm = [-130.0, 0.0, 0.0]\n",
+        ),
         ("name = \"J4\"", "mass_kg = 0.2\ncom_mm = [0.0, 0.0, 0.0]\n"),
-        ("name = \"J5\"", "mass_kg = 1.0\ncom_mm = [-150.0, 0.0, 0.0]\n"),
+        (
+            "name = \"J5\"",
+            "mass_kg = 1.0\ncom_mm = [-150.0, 0.0, 0.0]\n",
+        ),
     ];
     let mut out = text.replace("name = \"rv-m2-ideal\"", "name = \"rv-m2-masses\"");
     for (anchor, m) in masses {
@@ -69,8 +79,14 @@ fn measurable_poses(sc: &Scenario, n: usize, seed: u64) -> Vec<Vec<f64>> {
     out
 }
 
-/// Identifies `sc`'s recording with `specs`, writes and reads back the model file.
-fn model_with(sc: &Scenario, d: &Path, specs: &[EffectSpec]) -> (rigcal::model::LoadedModel, Vec<ModelEffect>) {
+/// Models of `sc`'s recording: the conventional (geometric-only) one and one with `specs`
+/// (`identify` then `identify --effects`), each written and read back.
+struct Models {
+    geometric: LoadedModel,
+    hybrid: LoadedModel,
+}
+
+fn model_with(sc: &Scenario, d: &Path, specs: &[EffectSpec]) -> (Models, Vec<ModelEffect>) {
     let rec = sc.world().record(&measurable_poses(sc, 300, 1), 1);
     let id = identify(&sc.rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
     let fitted = fit_recording_effects(&sc.rig, &rec, &id, specs).expect("effects fit");
@@ -78,9 +94,29 @@ fn model_with(sc: &Scenario, d: &Path, specs: &[EffectSpec]) -> (rigcal::model::
     file.effects = fitted.effects.clone();
     let path = d.join("model.json");
     file.save(&path).expect("save");
-    let loaded = ModelFile::load(&path).expect("load");
-    assert_eq!(loaded.file.effects, fitted.effects, "the effects round-trip");
-    (loaded, fitted.effects)
+    let hybrid = ModelFile::load(&path).expect("load");
+    assert_eq!(
+        hybrid.file.effects, fitted.effects,
+        "the effects round-trip"
+    );
+    let plain = d.join("geometric.json");
+    ModelFile::constant(&sc.rig, &id.fit, Provenance::default())
+        .save(&plain)
+        .expect("save");
+    let geometric = ModelFile::load(&plain).expect("load");
+    (Models { geometric, hybrid }, fitted.effects)
+}
+
+fn compare(
+    m: &Models,
+    world: &rigcal::world::World,
+    t: &[(u64, Target)],
+    opts: &HybridOptions,
+) -> [PathErrors; 2] {
+    [
+        compensated_errors(&m.geometric, false, world, t, opts, "geometric only").unwrap(),
+        compensated_errors(&m.hybrid, true, world, t, opts, "with effects").unwrap(),
+    ]
 }
 
 fn targets(sc: &Scenario) -> Vec<(u64, Target)> {
@@ -128,28 +164,41 @@ fn backlash_compensated_from_the_path_order_and_with_a_consistent_approach() {
     }
     let world = sc.world();
     let t = targets(&sc);
-    let from_path = geometric_vs_effects(&model, &world, &t, &HybridOptions::default()).unwrap();
+    let from_path = compare(&model, &world, &t, &HybridOptions::default());
     show("backlash, path order", &from_path);
     let consistent = HybridOptions {
         approach: Approach::Consistent,
         ..HybridOptions::default()
     };
-    let planned = geometric_vs_effects(&model, &world, &t, &consistent).unwrap();
+    let planned = compare(&model, &world, &t, &consistent);
     show("backlash, consistent approach", &planned);
     let floor = NOISE_MM * 3f64.sqrt();
     let [geo, hyb] = &from_path;
-    assert!(geo.mean_mm() > 2.0 * floor, "the backlash shows: {}", geo.mean_mm());
-    assert!(hyb.mean_mm() < 0.5 * floor, "with effects {} mm", hyb.mean_mm());
+    assert!(
+        geo.mean_mm() > 2.0 * floor,
+        "the backlash shows: {}",
+        geo.mean_mm()
+    );
+    assert!(
+        hyb.mean_mm() < 0.5 * floor,
+        "with effects {} mm",
+        hyb.mean_mm()
+    );
     assert!(hyb.max_mm() < floor, "with effects max {} mm", hyb.max_mm());
     let [_, hyb_c] = &planned;
     assert_eq!(hyb_c.moves, 100, "a via move before each target");
-    assert!(hyb_c.mean_mm() < 0.5 * floor, "consistent {} mm", hyb_c.mean_mm());
+    assert!(
+        hyb_c.mean_mm() < 0.5 * floor,
+        "consistent {} mm",
+        hyb_c.mean_mm()
+    );
 }
 
 #[test]
 fn compliance_compensated_with_the_rigs_masses_and_a_payload() {
     let d = dir("compliance");
-    let joints = "joints = [ { joint = 2, deg_per_nm = 0.002 }, { joint = 3, deg_per_nm = 0.003 } ]";
+    let joints =
+        "joints = [ { joint = 2, deg_per_nm = 0.002 }, { joint = 3, deg_per_nm = 0.003 } ]";
     // Identified without payload…
     let bare = scenario(
         &d,
@@ -159,7 +208,10 @@ fn compliance_compensated_with_the_rigs_masses_and_a_payload() {
     let (model, effects) = model_with(
         &bare,
         &d,
-        &[EffectSpec::JointCompliance(1), EffectSpec::JointCompliance(2)],
+        &[
+            EffectSpec::JointCompliance(1),
+            EffectSpec::JointCompliance(2),
+        ],
     );
     for (e, want) in effects.iter().zip([0.002, 0.003]) {
         let ModelEffect::JointCompliance {
@@ -175,7 +227,7 @@ fn compliance_compensated_with_the_rigs_masses_and_a_payload() {
         assert!((deg_per_nm - want).abs() < 4.0 * s + 2e-5, "{e:?}");
     }
     let t = targets(&bare);
-    let none = geometric_vs_effects(&model, &bare.world(), &t, &HybridOptions::default()).unwrap();
+    let none = compare(&model, &bare.world(), &t, &HybridOptions::default());
     show("compliance, no payload", &none);
     // …and used with a 2 kg payload at the tool, which the world carries too.
     let loaded = scenario(
@@ -189,12 +241,20 @@ fn compliance_compensated_with_the_rigs_masses_and_a_payload() {
         payload_kg: 2.0,
         ..HybridOptions::default()
     };
-    let payload = geometric_vs_effects(&model, &loaded.world(), &t, &opts).unwrap();
+    let payload = compare(&model, &loaded.world(), &t, &opts);
     show("compliance, 2 kg payload", &payload);
     let floor = NOISE_MM * 3f64.sqrt();
     let [geo, hyb] = &payload;
-    assert!(geo.mean_mm() > 2.0 * floor, "the payload's deflection shows: {}", geo.mean_mm());
-    assert!(hyb.mean_mm() < 0.5 * floor, "with effects {} mm", hyb.mean_mm());
+    assert!(
+        geo.mean_mm() > 2.0 * floor,
+        "the payload's deflection shows: {}",
+        geo.mean_mm()
+    );
+    assert!(
+        hyb.mean_mm() < 0.5 * floor,
+        "with effects {} mm",
+        hyb.mean_mm()
+    );
     assert!(hyb.max_mm() < floor, "with effects max {} mm", hyb.max_mm());
     let [g0, h0] = &none;
     assert!(h0.mean_mm() <= g0.mean_mm() && h0.mean_mm() < 0.5 * floor);
@@ -208,7 +268,10 @@ fn older_model_files_without_effects_still_read() {
     let id = identify(&sc.rig, &rec, Level::Full, &IdentifyOptions::default()).unwrap();
     let file = ModelFile::constant(&sc.rig, &id.fit, Provenance::default());
     let text = serde_json::to_string_pretty(&file).unwrap();
-    assert!(!text.contains("\"effects\""), "no section when there are none");
+    assert!(
+        !text.contains("\"effects\""),
+        "no section when there are none"
+    );
     let path = d.join("old.json");
     std::fs::write(&path, text).unwrap();
     assert!(ModelFile::load(&path).unwrap().file.effects.is_empty());

@@ -218,6 +218,25 @@ pub fn moves(path: &[HybridCommand]) -> Vec<(bool, Vec<f64>)> {
         .collect()
 }
 
+/// The text of a hybrid path's CSV: the joint columns of [`crate::recording::commands_csv`]
+/// and a `move` column, `via` for a planned via move and `target` for a target's command, one
+/// row per move in the order the arm makes them.
+pub fn path_csv(joints: &[crate::kinematics::JointSpec], path: &[HybridCommand]) -> String {
+    let all = moves(path);
+    let text = crate::recording::commands_csv(joints, all.iter().map(|(_, q)| q.as_slice()));
+    let mut out = String::with_capacity(text.len() + 8 * all.len());
+    for (k, line) in text.lines().enumerate() {
+        out.push_str(line);
+        out.push_str(match k {
+            0 => ",move",
+            _ if all[k - 1].0 => ",target",
+            _ => ",via",
+        });
+        out.push('\n');
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

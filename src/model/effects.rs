@@ -497,7 +497,10 @@ fn visible(
     let Some(first) = data.first() else {
         return Err(not("no measurements"));
     };
-    if data.iter().all(|d| (d.obs.q[j] - first.obs.q[j]).abs() < 1e-9) {
+    if data
+        .iter()
+        .all(|d| (d.obs.q[j] - first.obs.q[j]).abs() < 1e-9)
+    {
         return Err(not("the joint never moves"));
     }
     match spec {
@@ -617,9 +620,7 @@ fn model_effects(
         .zip(widths)
         .map(|(s, &w)| {
             let c = &coef[at..at + w];
-            let sub = cov
-                .view((offset + at, offset + at), (w, w))
-                .into_owned();
+            let sub = cov.view((offset + at, offset + at), (w, w)).into_owned();
             at += w;
             s.effect(chain, c, &sub)
         })
@@ -702,7 +703,9 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("ORDER"), "{e}");
-        let e = EffectSpec::parse("gear_wobble:1", 5).unwrap_err().to_string();
+        let e = EffectSpec::parse("gear_wobble:1", 5)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(SPEC_KINDS), "{e}");
     }
 

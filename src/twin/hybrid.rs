@@ -4,7 +4,9 @@
 //! The arm runs the path's moves in order (via moves included) from a fresh motion history at
 //! t = 0, so backlash sees the approach directions the path really makes. Units: mm.
 
-use crate::compensation::hybrid::{compensate_path, moves, HybridArm, HybridCommand, HybridOptions};
+use crate::compensation::hybrid::{
+    compensate_path, moves, HybridArm, HybridCommand, HybridOptions,
+};
 use crate::compensation::TargetError;
 use crate::kinematics::{ErrorParams, Robot};
 use crate::model::LoadedModel;
@@ -72,32 +74,32 @@ pub fn target_positions(world: &World, targets: &[(u64, Target)]) -> Vec<Vector3
         .collect()
 }
 
-/// Compensates `targets` with `model`'s geometry alone and with its effects, and measures both
-/// paths' true errors in `world`.
-pub fn geometric_vs_effects(
+/// Compensates `targets` with `model` (its effects too when `with_effects`) and measures the
+/// path's true errors in `world`, named `name`.
+pub fn compensated_errors(
     model: &LoadedModel,
+    with_effects: bool,
     world: &World,
     targets: &[(u64, Target)],
     opts: &HybridOptions,
-) -> Result<[PathErrors; 2], TargetError> {
+    name: &str,
+) -> Result<PathErrors, TargetError> {
     let rig = &model.rig;
     let arm = HybridArm {
         chain: &rig.chain,
         masses: &rig.link_masses,
         held: rig.held(),
     };
-    let positions = target_positions(world, targets);
-    let geo = compensate_path(&arm, model.errors.as_ref(), &[], targets, None, opts)?;
-    let hyb = compensate_path(
-        &arm,
-        model.errors.as_ref(),
-        &model.file.effects,
-        targets,
-        None,
-        opts,
-    )?;
-    Ok([
-        true_errors(world, &geo, &positions, "geometric only"),
-        true_errors(world, &hyb, &positions, "with effects"),
-    ])
+    let effects: &[crate::model::effects::ModelEffect] = if with_effects {
+        &model.file.effects
+    } else {
+        &[]
+    };
+    let path = compensate_path(&arm, model.errors.as_ref(), effects, targets, None, opts)?;
+    Ok(true_errors(
+        world,
+        &path,
+        &target_positions(world, targets),
+        name,
+    ))
 }
