@@ -6,3 +6,6 @@
 //! the diagnosis and compensation it calls see only recordings, rig files and model files.
 
 pub mod hybrid;
+pub mod learn;
+
+pub use learn::{learn, Twin, TwinError, TwinOptions};

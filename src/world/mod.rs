@@ -31,6 +31,7 @@ mod scenario;
 mod table;
 mod transmission;
 mod trig_joint;
+pub mod write;
 
 pub use backlash::Backlash;
 pub use compliance::{JointCompliance, PointMass, G};
