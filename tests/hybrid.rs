@@ -286,3 +286,72 @@ fn compliance_without_masses_is_refused_with_what_to_add() {
         .to_string();
     assert!(e.contains("mass_kg") && e.contains("joint 2"), "{e}");
 }
+
+#[test]
+fn cli_identify_with_effects_then_compensate_with_a_consistent_approach() {
+    let d = dir("cli");
+    let sc = scenario(
+        &d,
+        "cli",
+        "[[effects]]\nkind = \"backlash\"\njoint = 2\nlost_motion_deg = 0.05\n",
+    );
+    let rec_dir = d.join("rec");
+    sc.world()
+        .record(&measurable_poses(&sc, 200, 4), 1)
+        .write_dir(&rec_dir)
+        .unwrap();
+    let rig = d.join("rigs/rv-m2-masses.toml");
+    let model = d.join("cli-model.json");
+    let bin = env!("CARGO_BIN_EXE_rigcal");
+    let out = std::process::Command::new(bin)
+        .arg("identify")
+        .arg("--rig")
+        .arg(&rig)
+        .arg("--recording")
+        .arg(&rec_dir)
+        .args(["--effects", "backlash:2", "--out"])
+        .arg(&model)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("backlash on joint 2: lost motion 0.0"),
+        "{stdout}"
+    );
+    let targets = d.join("targets.csv");
+    let poses = measurable_poses(&sc, 5, 8);
+    std::fs::write(
+        &targets,
+        rigcal::recording::commands_csv(sc.rig.chain.joints(), poses.iter().map(|q| q.as_slice())),
+    )
+    .unwrap();
+    let cmds = d.join("commands.csv");
+    let out = std::process::Command::new(bin)
+        .arg("compensate")
+        .arg("--model")
+        .arg(&model)
+        .arg("--targets")
+        .arg(&targets)
+        .args(["--approach", "consistent", "--out"])
+        .arg(&cmds)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&cmds).unwrap();
+    let lines: Vec<&str> = text.lines().collect();
+    assert!(lines[0].ends_with(",move"), "{text}");
+    assert_eq!(lines.len(), 1 + 2 * 5, "{text}");
+    assert!(
+        lines[1].ends_with(",via") && lines[2].ends_with(",target"),
+        "{text}"
+    );
+}

@@ -167,3 +167,44 @@ fn flags_what_is_not_in_the_library_and_claims_no_library_effect() {
     assert!((d.heldout_rms_mm - t.after.heldout_mm).abs() < 1e-12);
     assert!(!t.scenario.contains("kind = \"backlash\""));
 }
+
+#[test]
+fn cli_learns_and_writes_the_updated_scenario() {
+    let d = dir("cli");
+    let start = d.join("start.toml");
+    std::fs::write(&start, start_text()).unwrap();
+    let rec_dir = d.join("rec");
+    record(
+        &truth("[[effects]]\nkind = \"backlash\"\njoint = 3\nlost_motion_deg = 0.03\n"),
+        400,
+        9,
+    )
+    .write_dir(&rec_dir)
+    .unwrap();
+    let out = d.join("learned.toml");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_rigcal"))
+        .args(["diagnose", "--rig", "rigs/rv-m2-ideal.toml", "--recording"])
+        .arg(&rec_dir)
+        .arg("--sim")
+        .arg(&start)
+        .arg("--write-scenario")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(
+        stdout.contains("simulation and recording differ"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("RMS sim vs recording: before"), "{stdout}");
+    let learned = Scenario::load(&out, None).expect("written scenario");
+    assert!(
+        learned.effects.iter().any(|e| e.kind() == "backlash"),
+        "{stdout}"
+    );
+}

@@ -690,3 +690,66 @@ fn solve(a: &DMatrix<f64>, r: &DVector<f64>) -> Result<DVector<f64>, TwinError> 
         .map_err(|e| TwinError::Fit(e.to_string()))?;
     Ok(DVector::from_fn(p, |i, _| x[i] * scale[i]))
 }
+
+/// Why [`model_with_named_effects`] failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum NamedModelError {
+    /// The identification failed.
+    #[error(transparent)]
+    Identify(#[from] crate::identification::IdentifyError),
+    /// The effects could not be fitted.
+    #[error(transparent)]
+    Effects(#[from] crate::model::effects::EffectError),
+}
+
+/// The model file `rigcal diagnose --model` writes: the conventional identification of `rec`
+/// and the joint effects `report` named that a model can carry (backlash, transmission errors,
+/// compliance when the rig has the masses), fitted beside the geometry. Also returns the named
+/// effects left out, each with why. Nothing is written when the report leaves an unexplained
+/// remainder: its named terms are not claimed (see [`learn`]).
+pub fn model_with_named_effects(
+    rig: &crate::rig::Rig,
+    rec: &Recording,
+    report: &Report,
+) -> Result<(crate::model::ModelFile, Vec<String>), NamedModelError> {
+    let id = crate::identification::identify(
+        rig,
+        rec,
+        crate::identification::Level::Full,
+        &crate::identification::IdentifyOptions::default(),
+    )?;
+    let mut specs = Vec::new();
+    let mut left = Vec::new();
+    for e in &report.effects {
+        let (label, term) = term_of(e);
+        match term {
+            _ if report.unexplained => left.push(format!(
+                "{label}: not claimed beside an unexplained remainder"
+            )),
+            Term::Joint(s) => match s.check(&rig.link_masses, rig.chain.joints().len()) {
+                Ok(()) => specs.push(s),
+                Err(why) => left.push(format!("{label}: {why}")),
+            },
+            _ => left.push(format!(
+                "{label}: a model file carries joint effects only (backlash, transmission_error, joint_compliance)"
+            )),
+        }
+    }
+    let provenance = crate::model::Provenance {
+        measurements: id.fit.after.n,
+        notes: Some("rigcal diagnose --model: geometry and the named effects".into()),
+        ..Default::default()
+    };
+    if specs.is_empty() {
+        return Ok((
+            crate::model::ModelFile::constant(rig, &id.fit, provenance),
+            left,
+        ));
+    }
+    let fitted = crate::model::effects::fit_recording_effects(rig, rec, &id, &specs)?;
+    let mut file = crate::model::ModelFile::constant(rig, &fitted.fit, provenance);
+    file.outliers = id.outliers.clone();
+    file.effects = fitted.effects;
+    Ok((file, left))
+}

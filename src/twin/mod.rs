@@ -8,4 +8,4 @@
 pub mod hybrid;
 pub mod learn;
 
-pub use learn::{learn, Twin, TwinError, TwinOptions};
+pub use learn::{learn, model_with_named_effects, Twin, TwinError, TwinOptions};
