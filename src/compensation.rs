@@ -8,6 +8,8 @@
 //! target's nominal solution, so constant, region-wise and learned parameters share one path.
 //! Units: mm and rad inside.
 
+pub mod hybrid;
+
 use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkError, IkOptions, Robot};
 use crate::recording::Target;
 use nalgebra::{DMatrix, DVector, Vector3};

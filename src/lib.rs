@@ -24,6 +24,7 @@
 //! | [`compensation`] | joint commands that bring the modelled arm to a target |
 //! | [`calibration`] | the variable D-H pipeline (division → learner → model), its evaluation along paths, the comparison with conventional and neural calibration |
 //! | [`diagnosis`] | what physics a recording shows beyond the geometry: noise floor, candidate effects, selection, report |
+//! | [`twin`] | the digital twin: a scenario compared with a recording point by point, diagnosed and rewritten; hybrid-compensated paths in a simulated world |
 //! | [`report`] | evaluation along paths, tables and plots |
 //! | [`reproduce`] | not the calibration tool: the papers' robots, their other schemes and tables, beside the papers' numbers (`rigcal reproduce`) |
 //! | [`cli`] | the `rigcal` command line: one module per subcommand (clap), the only place that uses `anyhow` |
@@ -50,4 +51,5 @@ pub mod rig;
 pub mod session;
 pub mod stats;
 pub mod transports;
+pub mod twin;
 pub mod world;

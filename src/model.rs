@@ -9,6 +9,8 @@
 //!              "fit": { … } } }
 //! ```
 
+pub mod effects;
+
 use crate::division::{DivisionSpace, RegionModel, RegionTree};
 use crate::identification::{FitResult, ResidualStats};
 use crate::kinematics::{ErrorModel, ErrorParams, Robot};
@@ -205,6 +207,10 @@ pub struct ModelFile {
     /// Measurements removed from the fit as outliers (`rigcal identify`), each with its row.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub outliers: Vec<crate::identification::outliers::Outlier>,
+    /// Joint-space effects fitted beside the geometry (`rigcal identify --effects`), which
+    /// compensation undoes; absent in older files and in geometric-only models.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub effects: Vec<effects::ModelEffect>,
 }
 
 /// An error model with its name (`conventional`, `regions`, `fcmac`, `cmac`).
@@ -247,6 +253,7 @@ impl ModelFile {
             fitted_from: provenance,
             model,
             outliers: Vec::new(),
+            effects: Vec::new(),
         }
     }
 

@@ -1,10 +1,12 @@
 //! `rigcal compensate`: joint commands for target positions with a calibrated model
-//! ([`crate::compensation::compensate_targets`]).
+//! ([`crate::compensation::compensate_targets`]; with the model's effects or a planned
+//! approach, [`crate::compensation::hybrid::compensate_path`]).
 
-use crate::compensation::{compensate_targets, CompensationOptions};
+use crate::compensation::hybrid::{compensate_path, path_csv, Approach, HybridArm, HybridOptions};
+use crate::compensation::{compensate_targets, CompensationOptions, TargetError};
 use crate::kinematics::Robot;
-use crate::model::ModelFile;
-use crate::recording::{commands_csv, read_targets};
+use crate::model::{LoadedModel, ModelFile};
+use crate::recording::{commands_csv, read_targets, Target};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
@@ -12,7 +14,8 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args)]
 #[command(mut_args(super::help_of(
     "out",
-    "Output CSV: one row of joint commands (`q1_deg…`) per target, same order"
+    "Output CSV: one row of joint commands (`q1_deg…`) per target, same order; with effects or \
+     `--approach consistent`, one row per move with a `move` column (`via` or `target`)"
 )))]
 pub struct Args {
     /// Model file written by `rigcal identify` or `rigcal calibrate`.
@@ -22,32 +25,48 @@ pub struct Args {
     /// are the targets.
     #[arg(long)]
     targets: PathBuf,
+    /// How backlash sees each target: `path` (the sign of each joint's motion from the previous
+    /// command, in the targets' order) or `consistent` (a via move 1° below every moving joint
+    /// before each target, so all are approached from the same side; the via rows are written).
+    #[arg(long, value_enum, default_value_t = ApproachArg::Path)]
+    approach: ApproachArg,
+    /// Payload at the tool (kg) for the model's joint compliance (the rig's link masses carry
+    /// the arm's own weight).
+    #[arg(long, default_value_t = 0.0)]
+    payload_kg: f64,
     #[command(flatten)]
     out: super::OutArg,
 }
 
+/// `--approach`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ApproachArg {
+    /// From the path's order.
+    Path,
+    /// Every target from below, through a via move.
+    Consistent,
+}
+
 pub fn run(a: Args) -> Result<()> {
     let loaded = ModelFile::load(&a.model)?;
-    let rig = &loaded.rig;
-    let chain = &rig.chain;
-    let targets = read_targets(&a.targets, chain.joints())?;
-    let commands = compensate_targets(
-        chain,
-        loaded.errors.as_ref(),
-        rig.held(),
-        &targets,
-        &CompensationOptions::default(),
-    )
-    .map_err(|e| {
+    let targets = read_targets(&a.targets, loaded.rig.chain.joints())?;
+    let at_line = |e: TargetError| {
         anyhow::Error::new(e.source).context(format!("{}: line {}", a.targets.display(), e.line))
-    })?;
-    let worst = commands.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
-    let text = commands_csv(
-        chain.joints(),
-        commands.iter().map(|c| c.command.as_slice()),
-    );
+    };
+    if !(a.payload_kg.is_finite() && a.payload_kg >= 0.0) {
+        anyhow::bail!("--payload-kg must be zero or positive");
+    }
+    let hybrid = !loaded.file.effects.is_empty() || a.approach == ApproachArg::Consistent;
+    let (text, worst) = if hybrid {
+        hybrid_commands(&loaded, &targets, &a).map_err(at_line)?
+    } else {
+        plain_commands(&loaded, &targets).map_err(at_line)?
+    };
     let out = &a.out.out;
     std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
+    for e in &loaded.file.effects {
+        println!("compensating {}", e.text());
+    }
     println!(
         "{} targets compensated (largest modelled error left {:.1e} mm); commands written to {}",
         targets.len(),
@@ -55,4 +74,55 @@ pub fn run(a: Args) -> Result<()> {
         out.display()
     );
     Ok(())
+}
+
+fn plain_commands(
+    loaded: &LoadedModel,
+    targets: &[(u64, Target)],
+) -> Result<(String, f64), TargetError> {
+    let chain = &loaded.rig.chain;
+    let commands = compensate_targets(
+        chain,
+        loaded.errors.as_ref(),
+        loaded.rig.held(),
+        targets,
+        &CompensationOptions::default(),
+    )?;
+    let worst = commands.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
+    let text = commands_csv(
+        chain.joints(),
+        commands.iter().map(|c| c.command.as_slice()),
+    );
+    Ok((text, worst))
+}
+
+fn hybrid_commands(
+    loaded: &LoadedModel,
+    targets: &[(u64, Target)],
+    a: &Args,
+) -> Result<(String, f64), TargetError> {
+    let rig = &loaded.rig;
+    let arm = HybridArm {
+        chain: &rig.chain,
+        masses: &rig.link_masses,
+        held: rig.held(),
+    };
+    let opts = HybridOptions {
+        approach: match a.approach {
+            ApproachArg::Path => Approach::FromPath,
+            ApproachArg::Consistent => Approach::Consistent,
+        },
+        payload_kg: a.payload_kg,
+        ..HybridOptions::default()
+    };
+    let path = compensate_path(
+        &arm,
+        loaded.errors.as_ref(),
+        &loaded.file.effects,
+        targets,
+        None,
+        &opts,
+    )?;
+    let worst = path.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
+    Ok((path_csv(rig.chain.joints(), &path), worst))
 }

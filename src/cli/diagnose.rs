@@ -1,9 +1,12 @@
-//! `rigcal diagnose`: what physics the nominal model leaves out of a recording.
+//! `rigcal diagnose`: what physics the nominal model leaves out of a recording; with `--sim`,
+//! the twin that learns from it ([`crate::twin::learn`]); with `--model`, a model file with the
+//! named effects ([`crate::twin::model_with_named_effects`]).
 
 use super::{RecordingArg, RigArg};
 use crate::diagnosis::{diagnose, Options};
+use crate::world::Scenario;
 use anyhow::{Context, Result};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal diagnose`.
 #[derive(Debug, clap::Args)]
@@ -21,17 +24,32 @@ pub struct Args {
     /// Held-out recordings to check the named effects on (default: a split of time blocks).
     #[arg(long, num_args = 1..)]
     heldout: Vec<PathBuf>,
+    /// The twin: a scenario to replay the recording's own rows in (poses, order, times), compare
+    /// point by point and diagnose the difference (1 row in 4 held out).
+    #[arg(long, requires = "write_scenario")]
+    sim: Option<PathBuf>,
+    /// With `--sim`: write the updated scenario (fitted geometry, named effects, any flagged
+    /// discrepancy) here.
+    #[arg(long, requires = "sim")]
+    write_scenario: Option<PathBuf>,
+    /// Write a model file with the geometry and the named joint effects, for `compensate` and
+    /// `evaluate`.
+    #[arg(long)]
+    model: Option<PathBuf>,
 }
 
 pub fn run(a: Args) -> Result<()> {
     let rig = a.rig.load()?;
     let rec = a.recording.read(&rig)?;
+    let path = &a.recording.recording;
+    if let (Some(sim), Some(out)) = (&a.sim, &a.write_scenario) {
+        return twin(&rig, &rec, sim, out);
+    }
     let heldout = a
         .heldout
         .iter()
         .map(|p| super::read_recording(&rig, p))
         .collect::<Result<Vec<_>>>()?;
-    let path = &a.recording.recording;
     let report = diagnose(&rig, &rec, &Options { heldout })
         .with_context(|| format!("diagnosing {}", path.display()))?;
     println!("recording {}", path.display());
@@ -46,5 +64,41 @@ pub fn run(a: Args) -> Result<()> {
             .with_context(|| format!("writing plots to {}", dir.display()))?;
         println!("{written} plot(s) written to {}", dir.display());
     }
+    if let Some(out) = &a.model {
+        let (file, left) = crate::twin::model_with_named_effects(&rig, &rec, &report)?;
+        for l in left {
+            println!("not in the model: {l}");
+        }
+        for e in &file.effects {
+            println!("in the model: {}", e.text());
+        }
+        file.save(out)?;
+        println!("model written to {}", out.display());
+    }
+    Ok(())
+}
+
+fn twin(
+    rig: &crate::rig::Rig,
+    rec: &crate::recording::Recording,
+    sim: &Path,
+    out: &Path,
+) -> Result<()> {
+    let source =
+        std::fs::read_to_string(sim).with_context(|| format!("reading {}", sim.display()))?;
+    let scenario = Scenario::parse(&source, sim, None)?;
+    if scenario.rig.name != rig.name {
+        anyhow::bail!(
+            "the scenario {} runs rig `{}`, the recording is read with rig `{}`",
+            sim.display(),
+            scenario.rig.name,
+            rig.name
+        );
+    }
+    eprintln!("replaying {} rows in {} …", rec.rows.len(), sim.display());
+    let t = crate::twin::learn(&scenario, &source, rec, out, &Default::default())?;
+    print!("{}", t.text());
+    std::fs::write(out, &t.scenario).with_context(|| format!("writing {}", out.display()))?;
+    println!("updated scenario written to {}", out.display());
     Ok(())
 }

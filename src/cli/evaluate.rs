@@ -42,6 +42,10 @@ pub struct Args {
     /// jumps; the error inside an unmeasurable region) as JSON to this file.
     #[arg(long, value_name = "FILE")]
     json: Option<PathBuf>,
+    /// Payload at the tool (kg), for a model with joint compliance: the compensation assumes it
+    /// (the scenario's world carries what its file says).
+    #[arg(long, default_value_t = 0.0)]
+    payload_kg: f64,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -77,6 +81,56 @@ pub fn run(a: Args) -> Result<()> {
         std::fs::write(file, serde_json::to_string_pretty(&json)? + "\n")
             .with_context(|| format!("writing {}", file.display()))?;
         println!("figures written to {}", file.display());
+    }
+    evaluate_effects(&a.model, &a.scenario, &paths, a.payload_kg)
+}
+
+/// For a model with effects: each path's targets compensated in order with the geometry alone
+/// and with the effects, and the true error of the moves in the scenario's world
+/// ([`crate::twin::hybrid::compensated_errors`]).
+fn evaluate_effects(
+    model: &Path,
+    scenario: &Path,
+    paths: &[PathSpec],
+    payload_kg: f64,
+) -> Result<()> {
+    let loaded = ModelFile::load(model)?;
+    if loaded.file.effects.is_empty() {
+        return Ok(());
+    }
+    let world = Scenario::load(scenario, None)?.world();
+    let opts = crate::compensation::hybrid::HybridOptions {
+        payload_kg,
+        ..Default::default()
+    };
+    for path in paths {
+        let targets: Vec<(u64, crate::recording::Target)> = path
+            .points
+            .iter()
+            .enumerate()
+            .map(|(k, q)| (k as u64 + 1, crate::recording::Target::Joints(q.clone())))
+            .collect();
+        println!(
+            "{}: true error of the compensated moves, in the path's order (backlash from it)",
+            path.name
+        );
+        for with in [false, true] {
+            let name = if with {
+                "with effects"
+            } else {
+                "geometry only"
+            };
+            let r = crate::twin::hybrid::compensated_errors(
+                &loaded, with, &world, &targets, &opts, name,
+            )
+            .map_err(|e| anyhow::Error::new(e.source).context(format!("path point {}", e.line)))?;
+            println!(
+                "  {:<14} mean {:.4} mm, max {:.4} mm",
+                r.model,
+                r.mean_mm(),
+                r.max_mm()
+            );
+        }
     }
     Ok(())
 }

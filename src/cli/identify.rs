@@ -4,6 +4,7 @@ use super::{OutArg, RecordingArg, RigArg};
 use crate::identification::outliers::Outlier;
 use crate::identification::{identify, FitResult, HeldOut, Identification, IdentifyOptions};
 use crate::kinematics::Robot;
+use crate::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
 use crate::model::{ModelFile, Provenance};
 use crate::rig::Rig;
 use anyhow::Result;
@@ -29,6 +30,12 @@ pub struct Args {
     /// fitted model on each.
     #[arg(long, num_args = 1..)]
     heldout: Vec<PathBuf>,
+    /// Effects to fit beside the geometry and write into the model, which `compensate` and
+    /// `evaluate` then undo: comma-separated `backlash:J`, `transmission_error:J:ORDER`,
+    /// `joint_compliance:J` (joints 1-based; compliance needs the rig's link masses). Name the
+    /// ones `rigcal diagnose` reports.
+    #[arg(long, value_delimiter = ',')]
+    effects: Vec<String>,
 }
 
 /// How much of the model to fit (the command line's names for
@@ -70,7 +77,25 @@ pub fn run(a: Args) -> Result<()> {
         id.fit.after.n
     );
     print_identification(&id);
-    write_model(&rig, &id, recording, &a.out.out)
+    if a.effects.is_empty() {
+        return write_model(&rig, &id, recording, &a.out.out);
+    }
+    let specs = a
+        .effects
+        .iter()
+        .map(|w| EffectSpec::parse(w, rig.chain.joints().len()))
+        .collect::<Result<Vec<_>, _>>()?;
+    let fitted = fit_recording_effects(&rig, &rec, &id, &specs)?;
+    println!("fitted with the effects, beside the geometry:");
+    for e in &fitted.effects {
+        println!("  {}", e.text());
+    }
+    print_fit_summary(&fitted.fit);
+    let id = Identification {
+        fit: fitted.fit,
+        ..id
+    };
+    write_model_with_effects(&rig, &id, recording, &a.out.out, &fitted.effects)
 }
 
 /// Reads the held-out recordings, each named by its path.
@@ -114,6 +139,17 @@ pub(crate) fn write_model(
     recording: &Path,
     out: &Path,
 ) -> Result<()> {
+    write_model_with_effects(rig, id, recording, out, &[])
+}
+
+/// [`write_model`] with effects fitted beside the geometry.
+fn write_model_with_effects(
+    rig: &Rig,
+    id: &Identification,
+    recording: &Path,
+    out: &Path,
+    effects: &[ModelEffect],
+) -> Result<()> {
     let mut file = ModelFile::constant(
         rig,
         &id.fit,
@@ -124,6 +160,7 @@ pub(crate) fn write_model(
         },
     );
     file.outliers = id.outliers.clone();
+    file.effects = effects.to_vec();
     file.save(out)?;
     println!("model written to {}", out.display());
     Ok(())

@@ -32,6 +32,7 @@ pub mod simulate;
 mod table;
 mod transmission;
 mod trig_joint;
+pub mod write;
 
 pub use backlash::Backlash;
 pub use compliance::{JointCompliance, PointMass, G};
@@ -410,6 +411,50 @@ impl World {
                 .push(w.measure_at(q, t, seq, 0).to_measurement(seq, t));
         }
         rec
+    }
+
+    /// Moves the arm through `moves` (commanded joints, time in s) in that order, from this
+    /// world's motion history (the world itself is left unchanged): where the arm really is
+    /// after each move, backlash and drift as the order and times make them.
+    pub fn run_moves(&self, moves: &[(Vec<f64>, f64)]) -> Vec<ArmState> {
+        let mut w = self.clone();
+        moves.iter().map(|(q, t)| w.move_arm(q, *t)).collect()
+    }
+
+    /// This world without its random errors (noise, repeatability, table accuracy and
+    /// quantisation): what it measures on average, for comparing with a recording point by point.
+    pub fn noiseless(&self) -> World {
+        let mut w = self.clone();
+        w.settings.noise_mm = 0.0;
+        w.settings.arm_repeatability_mm = 0.0;
+        w.settings.table_accuracy_mm = 0.0;
+        w.settings.quantise = false;
+        w
+    }
+
+    /// Replays a recording's rows in order at their times (`t_s`, or the row index times
+    /// `seconds_per_point` without it), from a fresh motion history: every row moves the arm
+    /// (so `via` rows set approach directions as they did), and each `ok` row gets what this
+    /// world measures there (None for other rows and for misses). Use [`World::noiseless`]
+    /// first for the expected readings.
+    pub fn replay(&self, rec: &Recording) -> Vec<Option<Vector3<f64>>> {
+        let mut w = self.clone();
+        w.history = MotionHistory::default();
+        rec.rows
+            .iter()
+            .enumerate()
+            .map(|(k, row)| {
+                let t = row
+                    .t_s
+                    .unwrap_or(k as f64 * self.settings.seconds_per_point);
+                if row.status == Status::Ok && row.position.is_some() {
+                    w.measure_at(&row.q, t, row.seq, 0).position
+                } else {
+                    w.move_arm(&row.q, t);
+                    None
+                }
+            })
+            .collect()
     }
 
     /// The uncalibrated error along `path` split into total and non-geometric (conventions §3),
