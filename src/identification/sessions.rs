@@ -284,12 +284,13 @@ pub fn fit_sessions(
         rounds += 1;
         let f0 = chain.frame_pose(&result.params);
         for (k, o) in obs.iter().enumerate().skip(1) {
-            let (r, g) = refit_frame(&chain, &result.params, o, PerSession::Frame).map_err(
-                |source| SessionError::Refit {
-                    name: format!("training session {}", k + 1),
-                    source,
-                },
-            )?;
+            let (r, g) =
+                refit_frame(&chain, &result.params, o, PerSession::Frame).map_err(|source| {
+                    SessionError::Refit {
+                        name: format!("training session {}", k + 1),
+                        source,
+                    }
+                })?;
             // measured = g · F_k · c(q): into the first frame by F_0 · F_k⁻¹ · g⁻¹.
             maps[k] = f0 * chain.frame_pose(&r.params).inverse() * g.inverse();
         }
@@ -327,7 +328,10 @@ pub fn fit_sessions(
 fn merge(first: &Recording, others: &[&Recording], maps: &[Isometry3<f64>]) -> Recording {
     let mut out = Recording::new(&first.joints);
     let mut seq = 0;
-    for (rec, m) in std::iter::once(first).chain(others.iter().copied()).zip(maps) {
+    for (rec, m) in std::iter::once(first)
+        .chain(others.iter().copied())
+        .zip(maps)
+    {
         for row in &rec.rows {
             let mut row = row.clone();
             seq += 1;
@@ -462,4 +466,16 @@ fn same_effect(c: &dyn Candidate, e: &EffectReport) -> bool {
             .as_ref()
             .is_some_and(|[x, y]| x == diagnosis::AXES[a] && y == diagnosis::AXES[b]),
     }
+}
+
+/// A copy of `rec` with the rows of `seqs` marked `via` (kept for the approach directions, not
+/// measured): a recording without the outliers a diagnosis removed.
+pub fn without_rows(rec: &Recording, seqs: impl IntoIterator<Item = u64>) -> Recording {
+    let mut out = rec.clone();
+    for s in seqs {
+        for row in out.rows.iter_mut().filter(|m| m.seq == s) {
+            row.status = Status::Via;
+        }
+    }
+    out
 }
