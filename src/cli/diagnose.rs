@@ -3,8 +3,11 @@
 //! named effects ([`crate::twin::model_with_named_effects`]).
 
 use super::{RecordingArg, RigArg};
-use crate::diagnosis::{diagnose, Options};
 use crate::world::Scenario;
+use crate::diagnosis::{diagnose, Options, Report};
+use crate::identification::sessions::{physics_heldout, without_rows, PerSession};
+use crate::recording::Recording;
+use crate::rig::Rig;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 
@@ -36,6 +39,14 @@ pub struct Args {
     /// `evaluate`.
     #[arg(long)]
     model: Option<PathBuf>,
+    /// Held-out sessions not registered to this one (the tracker or motion-capture frame moved
+    /// between days): the geometry and the named effects fitted here are kept, the measurement
+    /// frame refitted on each, and the RMS with and without the effects printed.
+    #[arg(long, num_args = 1..)]
+    heldout_session: Vec<PathBuf>,
+    /// Refit the marker too on each held-out session.
+    #[arg(long)]
+    refit_marker: bool,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -54,6 +65,9 @@ pub fn run(a: Args) -> Result<()> {
         .with_context(|| format!("diagnosing {}", path.display()))?;
     println!("recording {}", path.display());
     print!("{}", report.text());
+    if !a.heldout_session.is_empty() {
+        print_sessions(&a, &rig, &rec, &report)?;
+    }
     if let Some(path) = &a.json {
         let text = serde_json::to_string_pretty(&report)?;
         std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
@@ -100,5 +114,34 @@ fn twin(
     print!("{}", t.text());
     std::fs::write(out, &t.scenario).with_context(|| format!("writing {}", out.display()))?;
     println!("updated scenario written to {}", out.display());
+    Ok(())
+}
+
+/// Held-out sessions with the frame refitted, geometry only and with the named effects.
+fn print_sessions(a: &Args, rig: &Rig, rec: &Recording, report: &Report) -> Result<()> {
+    let held = super::identify::read_heldout(rig, &a.heldout_session)?;
+    let per = if a.refit_marker {
+        PerSession::FrameAndMarker
+    } else {
+        PerSession::Frame
+    };
+    let training = without_rows(rec, report.outliers.iter().map(|o| o.seq));
+    let ph = physics_heldout(rig, &training, &report.effects, &held, per)?;
+    println!(
+        "held-out sessions ({}); effects: {}",
+        per.describe(),
+        if ph.effects.is_empty() {
+            "none".to_string()
+        } else {
+            ph.effects.join(", ")
+        }
+    );
+    println!(
+        "  training RMS {:.4} mm geometry only, {:.4} mm with the effects",
+        ph.training_geometry, ph.training_physics
+    );
+    for (name, geometry, physics) in &ph.heldout {
+        println!("  held-out session {name}: RMS {geometry:.4} mm geometry only, {physics:.4} mm with the effects");
+    }
     Ok(())
 }

@@ -2,6 +2,7 @@
 
 use super::{OutArg, RecordingArg, RigArg};
 use crate::identification::outliers::Outlier;
+use crate::identification::sessions::{fit_sessions, heldout_sessions, PerSession};
 use crate::identification::{identify, FitResult, HeldOut, Identification, IdentifyOptions};
 use crate::kinematics::Robot;
 use crate::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
@@ -36,6 +37,19 @@ pub struct Args {
     /// ones `rigcal diagnose` reports.
     #[arg(long, value_delimiter = ',')]
     effects: Vec<String>,
+    /// Held-out sessions not registered to the training one (the tracker or motion-capture
+    /// frame moved between days): the fitted kinematic parameters are kept and the measurement
+    /// frame is refitted on each, so the figure judges the kinematics, not the frame shift.
+    #[arg(long, num_args = 1..)]
+    heldout_session: Vec<PathBuf>,
+    /// More training sessions, each with its own measurement frame (the marker is shared);
+    /// the model is in the first recording's frame.
+    #[arg(long, num_args = 1..)]
+    with_session: Vec<PathBuf>,
+    /// Refit the marker too on each held-out session (when the marker or its rigid-body
+    /// definition may have been re-made between sessions).
+    #[arg(long)]
+    refit_marker: bool,
 }
 
 /// How much of the model to fit (the command line's names for
@@ -62,6 +76,9 @@ impl From<Level> for crate::identification::Level {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = a.rig.load()?;
+    if !a.heldout_session.is_empty() || !a.with_session.is_empty() {
+        return run_sessions(&a, &rig);
+    }
     let rec = a.recording.read(&rig)?;
     let heldout = read_heldout(&rig, &a.heldout)?;
     let options = IdentifyOptions {
@@ -98,8 +115,64 @@ pub fn run(a: Args) -> Result<()> {
     write_model_with_effects(&rig, &id, recording, &a.out.out, &fitted.effects)
 }
 
+/// Training on one or more sessions with a frame each, held-out sessions with their frame
+/// refitted ([`crate::identification::sessions`]).
+fn run_sessions(a: &Args, rig: &Rig) -> Result<()> {
+    let mut train = read_heldout(rig, std::slice::from_ref(&a.recording.recording))?;
+    train.extend(read_heldout(rig, &a.with_session)?);
+    let held = read_heldout(rig, &a.heldout_session)?;
+    let per = if a.refit_marker {
+        PerSession::FrameAndMarker
+    } else {
+        PerSession::Frame
+    };
+    let trained = fit_sessions(rig, &train, a.level.into())?;
+    for s in &trained.sessions {
+        println!(
+            "training session {}: {} measurements used",
+            s.name,
+            s.recording.observations().len()
+        );
+        print_outliers(&s.outliers);
+    }
+    print!(
+        "{}",
+        super::parameter_table(trained.chain.layout(), &trained.fit, None)
+    );
+    print_fit_summary(&trained.fit);
+    println!(
+        "training RMS {:.4} mm over {} points, each session in its own frame ({} alternation round(s))",
+        trained.training.rms_mm, trained.training.n, trained.rounds
+    );
+    println!("held-out sessions: {}", per.describe());
+    for h in heldout_sessions(rig, &trained.chain, &trained.fit, &held, per)? {
+        for o in &h.outliers {
+            println!(
+                "held-out session {}: bad row seq {} left out ({:.4} mm off the full model, {:.1} σ)",
+                h.name, o.seq, o.size_mm, o.sigmas
+            );
+        }
+        println!(
+            "held-out session {} ({} points): nominal kinematics RMS {:.4} mm → fitted RMS {:.4} mm, max {:.4} mm (through the training frame, nothing refitted: {:.4} mm)",
+            h.name, h.points, h.nominal_refit.rms_mm, h.refit.rms_mm, h.refit.max_mm, h.frozen.rms_mm
+        );
+    }
+    let id = Identification {
+        chain: trained.chain,
+        fit: trained.fit,
+        outliers: trained
+            .sessions
+            .into_iter()
+            .flat_map(|s| s.outliers)
+            .collect(),
+        outlier_warning: None,
+        heldout: Vec::new(),
+    };
+    write_model(rig, &id, &a.recording.recording, &a.out.out)
+}
+
 /// Reads the held-out recordings, each named by its path.
-fn read_heldout(rig: &Rig, paths: &[PathBuf]) -> Result<Vec<HeldOut>> {
+pub(crate) fn read_heldout(rig: &Rig, paths: &[PathBuf]) -> Result<Vec<HeldOut>> {
     paths
         .iter()
         .map(|p| {

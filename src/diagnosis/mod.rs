@@ -118,12 +118,16 @@ pub enum DiagnoseError {
     #[error("plot: {0}")]
     Plot(String),
     /// Too few measurements for the tests.
-    #[error("{measurements} measurements are too few to diagnose {unknowns} unknowns")]
+    #[error("{measurements} measurements give {equations} equations for {unknowns} unknowns: the diagnosis needs at least {needed} equations ({} residual degrees of freedom for its tests)", screen::MIN_RESIDUAL_DOF)]
     TooFew {
         /// Measurements.
         measurements: usize,
+        /// Scalar equations (3 per measurement).
+        equations: usize,
         /// Unknowns of the largest model.
         unknowns: usize,
+        /// Equations needed.
+        needed: usize,
     },
 }
 

@@ -66,8 +66,12 @@ impl Screen {
     }
 }
 
+/// Residual degrees of freedom (equations − unknowns) the tests need at least.
+pub const MIN_RESIDUAL_DOF: usize = 20;
+
 /// Screens a standard fit: fails with [`DiagnoseError::TooFew`] when the residual degrees of
-/// freedom are fewer than twice the model's columns (and at least 20).
+/// freedom (3 equations per measurement, less the model's columns) are fewer than
+/// [`MIN_RESIDUAL_DOF`].
 pub fn screen(std: &Standard) -> Result<Screen, DiagnoseError> {
     let d = &std.data;
     let nrows = 3 * d.len();
@@ -83,11 +87,16 @@ pub fn screen(std: &Standard) -> Result<Screen, DiagnoseError> {
     let basis = orth_basis(&scale_rows(&model, &weights), 1e-9);
     let rw = DVector::from_iterator(nrows, std.residual.iter().zip(&weights).map(|(a, b)| a * b));
     let residual = &rw - &basis * (basis.transpose() * &rw);
+    // Equations, not points, count: 3 per measurement. The per-term F-tests need the residual
+    // variance on enough degrees of freedom; a 22-posture tracker session (66 equations, 31
+    // geometric unknowns) has 35 and can be diagnosed.
     let dof = nrows.saturating_sub(basis.ncols());
-    if dof < 2 * basis.ncols().max(10) {
+    if dof < MIN_RESIDUAL_DOF {
         return Err(DiagnoseError::TooFew {
             measurements: d.len(),
+            equations: nrows,
             unknowns: basis.ncols(),
+            needed: basis.ncols() + MIN_RESIDUAL_DOF,
         });
     }
     let extra_var = std.instrument_var.iter().sum::<f64>() / 3.0;

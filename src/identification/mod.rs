@@ -23,6 +23,7 @@ pub mod identifiability;
 pub mod outliers;
 pub mod pipeline;
 pub mod registration;
+pub mod sessions;
 
 pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};
 pub use geometric::{fit_geometry, GeometricFit, Level};
