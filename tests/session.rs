@@ -278,7 +278,9 @@ fn a_point_sensor_session_killed_and_resumed_matches_the_uninterrupted_one() {
             resume,
         )
     };
-    kill_and_resume(&cmd, 5, 11, Duration::from_millis(50));
+    // No cap below the whole run: on a loaded machine the start-up alone can outlast 50 ms,
+    // and kills that never get past it make no progress.
+    kill_and_resume(&cmd, 5, 11, Duration::from_secs(2));
 }
 
 /// Planning mode through a session (`calibrate --session`), killed at random moments and
