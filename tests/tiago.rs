@@ -261,7 +261,7 @@ fn cli_identify_and_diagnose_with_a_heldout_session() {
     );
     let line = text
         .lines()
-        .find(|l| l.starts_with("held-out session"))
+        .find(|l| l.starts_with("held-out session ") && l.contains("fitted RMS"))
         .unwrap();
     // Offsets on 0701, 0702 held out: 12.94 mm (nominal 28.58 mm), frame refitted.
     assert!(line.contains("fitted RMS 12.9"), "{line}");
