@@ -6,6 +6,7 @@ mod compensate;
 mod demo;
 mod diagnose;
 mod evaluate;
+mod export;
 mod identify;
 mod import;
 mod observability;
@@ -121,6 +122,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Position error along paths of a simulated arm with each model, CEP traces and plots.
     Evaluate(evaluate::Args),
+    /// Take a calibration home: `rigcal export urdf --model M --urdf IN.urdf --out OUT.urdf`.
+    Export(export::Args),
     /// Name the physics the geometric model leaves out of a recording (or say it does not know).
     Diagnose(diagnose::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
@@ -172,6 +175,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Export(a) => export::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
