@@ -29,6 +29,10 @@ pub struct Args {
     /// fitted model on each.
     #[arg(long, num_args = 1..)]
     heldout: Vec<PathBuf>,
+    /// Also write a self-contained HTML report (parameters with σ, correlations, residuals,
+    /// outliers, held-out figures) here.
+    #[arg(long, value_name = "FILE.html")]
+    report: Option<PathBuf>,
 }
 
 /// How much of the model to fit (the command line's names for
@@ -70,6 +74,11 @@ pub fn run(a: Args) -> Result<()> {
         id.fit.after.n
     );
     print_identification(&id);
+    if let Some(path) = &a.report {
+        let source = super::report_source(&rig, &a.rig.rig, recording, rec.rows.len());
+        let html = crate::report::html::identification_report(&source, &id);
+        super::write_report(path, &html)?;
+    }
     write_model(&rig, &id, recording, &a.out.out)
 }
 

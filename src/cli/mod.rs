@@ -246,3 +246,25 @@ pub(crate) fn parameter_table(
     }
     s
 }
+
+/// The "fitted from" of an HTML report. (Strings borrowed from the caller's paths.)
+pub(crate) fn report_source<'a>(
+    rig: &'a Rig,
+    rig_path: &'a Path,
+    recording: &'a Path,
+    rows: usize,
+) -> crate::report::html::Source<'a> {
+    crate::report::html::Source {
+        rig: &rig.name,
+        rig_path: rig_path.to_str().unwrap_or("(rig file)"),
+        recording: recording.to_str().unwrap_or("(recording)"),
+        rows,
+    }
+}
+
+/// Writes an HTML report and says where.
+pub(crate) fn write_report(path: &Path, html: &str) -> anyhow::Result<()> {
+    std::fs::write(path, html).with_context(|| format!("cannot write {}", path.display()))?;
+    println!("report written to {}", path.display());
+    Ok(())
+}
