@@ -203,7 +203,7 @@ fn init_logging(verbose: u8) {
 
 /// Reads a recording for a rig, with the path in the error.
 pub(crate) fn read_recording(rig: &Rig, path: &Path) -> anyhow::Result<Recording> {
-    Recording::read(path, rig.chain.joints()).with_context(|| {
+    Recording::read_measured(path, rig.chain.joints()).with_context(|| {
         format!(
             "reading the recording {} for rig `{}` ({} joints)",
             path.display(),
