@@ -226,3 +226,43 @@ fn the_diagnose_report_shows_each_effect_with_its_evidence_and_the_json_is_tagge
     assert_eq!(html.matches("<title>residual vs time").count(), 1);
     assert_eq!(html.matches("<svg ").count(), 9 + effects);
 }
+
+#[test]
+fn small_things_help_texts_and_an_empty_recording() {
+    let top = ok(&["--help"]);
+    assert!(
+        top.contains("calibrate a robot arm from position measurements"),
+        "{top}"
+    );
+    let d = ok(&["diagnose", "--help"]);
+    assert!(!d.contains("shared/spec"), "{d}");
+    assert!(d.contains("--report"));
+    let dir = tempfile::tempdir().unwrap();
+    let (rig, rec, _) = setup(dir.path());
+    let csv = rec.join("measurements.csv");
+    let header = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .next()
+        .unwrap()
+        .to_string();
+    std::fs::write(&csv, header + "\n").unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_rigcal"))
+        .args([
+            "identify",
+            "--rig",
+            &s(&rig),
+            "--recording",
+            &s(&rec),
+            "--out",
+            &s(&dir.path().join("m.json")),
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(&s(&csv)) && err.contains("no measured rows"),
+        "{err}"
+    );
+}

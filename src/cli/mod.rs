@@ -31,7 +31,7 @@ use std::process::ExitCode;
 /// Files hold millimetres and degrees. Start with `rigcal demo` for a full simulated run, or
 /// `rigcal observability --rig rigs/rv-m2.toml` to see what a rig can identify.
 #[derive(Debug, Parser)]
-#[command(name = "rigcal", version, about, long_about = None, propagate_version = true)]
+#[command(name = "rigcal", version, propagate_version = true)]
 pub struct Cli {
     #[command(flatten)]
     verbosity: Verbosity,
