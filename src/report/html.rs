@@ -48,11 +48,7 @@ impl Html {
         if !self.body.is_empty() {
             self.body.push_str("</section>\n");
         }
-        let _ = write!(
-            self.body,
-            "<section id=\"{id}\"><h2>{}</h2>\n",
-            esc(heading)
-        );
+        let _ = writeln!(self.body, "<section id=\"{id}\"><h2>{}</h2>", esc(heading));
     }
 
     /// A paragraph of text.
