@@ -25,6 +25,7 @@
 //! | [`calibration`] | the variable D-H pipeline (division → learner → model), its evaluation along paths, the comparison with conventional and neural calibration |
 //! | [`diagnosis`] | what physics a recording shows beyond the geometry: noise floor, candidate effects, selection, report |
 //! | [`twin`] | the digital twin: a scenario compared with a recording point by point, diagnosed and rewritten; hybrid-compensated paths in a simulated world |
+//! | [`export`] | the calibrated URDF and a flat list of corrected joint offsets |
 //! | [`report`] | evaluation along paths, tables and plots |
 //! | [`reproduce`] | not the calibration tool: the papers' robots, their other schemes and tables, beside the papers' numbers (`rigcal reproduce`) |
 //! | [`cli`] | the `rigcal` command line: one module per subcommand (clap), the only place that uses `anyhow` |
@@ -38,6 +39,7 @@ pub mod compensation;
 pub mod devices;
 pub mod diagnosis;
 pub mod division;
+pub mod export;
 pub mod identification;
 pub mod kinematics;
 pub mod learners;

@@ -211,6 +211,54 @@ pub struct ModelFile {
     /// compensation undoes; absent in older files and in geometric-only models.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<effects::ModelEffect>,
+    /// The covariance of the fitted (conventional) parameters, in file units, when known.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub covariance: Option<Covariance>,
+}
+
+/// The covariance of a model's fitted parameters (mm and degrees, as the entries).
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Covariance {
+    /// The parameters, in the order of the rows (the entries' order).
+    pub names: Vec<String>,
+    /// Row-major values, `names.len()` rows of `names.len()`.
+    pub values: Vec<Vec<f64>>,
+}
+
+impl Covariance {
+    /// The covariance of a fit's free parameters, in file units.
+    pub fn of(rig: &Rig, fit: &FitResult) -> Self {
+        let layout = rig.chain.layout();
+        let scale: Vec<f64> = fit
+            .free
+            .iter()
+            .map(|&i| layout.ids()[i].kind.to_file_units(1.0))
+            .collect();
+        let n = fit.free.len().min(fit.covariance.nrows());
+        Self {
+            names: fit
+                .free
+                .iter()
+                .map(|&i| layout.name(layout.ids()[i]))
+                .collect(),
+            values: (0..n)
+                .map(|i| {
+                    (0..n)
+                        .map(|j| fit.covariance[(i, j)] * scale[i] * scale[j])
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+
+    /// As a matrix (empty when the rows are ragged).
+    pub fn matrix(&self) -> nalgebra::DMatrix<f64> {
+        let n = self.names.len();
+        if self.values.len() != n || self.values.iter().any(|r| r.len() != n) {
+            return nalgebra::DMatrix::zeros(0, 0);
+        }
+        nalgebra::DMatrix::from_fn(n, n, |i, j| self.values[i][j])
+    }
 }
 
 /// An error model with its name (`conventional`, `regions`, `fcmac`, `cmac`).
@@ -229,14 +277,16 @@ pub struct LoadedModel {
 impl ModelFile {
     /// A constant-parameter model from a fit.
     pub fn constant(rig: &Rig, fit: &FitResult, provenance: Provenance) -> Self {
-        Self::new(
+        let mut file = Self::new(
             rig,
             provenance,
             ModelBody::Constant {
                 parameters: entries(rig, fit),
                 fit: summary(fit),
             },
-        )
+        );
+        file.covariance = Some(Covariance::of(rig, fit));
+        file
     }
 
     /// A model file around a body.
@@ -254,6 +304,7 @@ impl ModelFile {
             model,
             outliers: Vec::new(),
             effects: Vec::new(),
+            covariance: None,
         }
     }
 

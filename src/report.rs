@@ -5,6 +5,9 @@
 //! target| (mm), the truth coming from a simulated world. CEP traces and the largest jump of each
 //! CEP between consecutive path points measure smoothness.
 
+pub mod html;
+pub mod svg;
+
 use crate::compensation::{compensate_from, CompensationOptions};
 use crate::identification::ResidualStats;
 use crate::kinematics::{

@@ -59,6 +59,10 @@ pub struct Args {
     /// Where to write the model (JSON).
     #[arg(long)]
     pub out: PathBuf,
+    /// Also write a self-contained HTML report (the conventional parameters, the fit, the
+    /// division's regions) here.
+    #[arg(long, value_name = "FILE.html")]
+    pub report: Option<PathBuf>,
 }
 
 /// Three numbers separated by commas.
@@ -95,6 +99,18 @@ pub fn run(a: Args) -> Result<()> {
     };
     calibrated.model.save(&a.out)?;
     println!("model written to {}", a.out.display());
+    if let Some(path) = &a.report {
+        let from = a
+            .recording
+            .as_ref()
+            .or(a.scenario.as_ref())
+            .or(a.session.as_ref());
+        let from = from.map(|p| p.as_path()).unwrap_or(Path::new("-"));
+        let rows = calibrated.model.fitted_from.measurements;
+        let source = super::report_source(&rig, &a.rig, from, rows);
+        let html = crate::report::html::model_report(&source, &calibrated.model);
+        super::write_report(path, &html)?;
+    }
     Ok(())
 }
 

@@ -18,9 +18,13 @@ pub struct Args {
     rig: RigArg,
     #[command(flatten)]
     recording: RecordingArg,
-    /// Write the diagnosis report (JSON, shared/spec/recordings.md) here.
+    /// Write the diagnosis report as JSON here (`format` rigcal-diagnosis, `version` 1: the
+    /// mismatch, the named effects with their parameters and evidence, the fit, the outliers).
     #[arg(long)]
     json: Option<PathBuf>,
+    /// Write a self-contained HTML report (each effect with its evidence plot) here.
+    #[arg(long, value_name = "FILE.html")]
+    report: Option<PathBuf>,
     /// Write SVG residual plots into this directory.
     #[arg(long)]
     plots: Option<PathBuf>,
@@ -69,9 +73,15 @@ pub fn run(a: Args) -> Result<()> {
         print_sessions(&a, &rig, &rec, &report)?;
     }
     if let Some(path) = &a.json {
-        let text = serde_json::to_string_pretty(&report)?;
+        let text = report.to_json()?;
         std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?;
         println!("report written to {}", path.display());
+    }
+    if let Some(html) = &a.report {
+        let residuals = crate::diagnosis::plots::residual_series(&rig, &rec)?;
+        let source = super::report_source(&rig, &a.rig.rig, path, rec.rows.len());
+        let text = crate::report::html::diagnosis_report(&source, &report, &residuals);
+        super::write_report(html, &text)?;
     }
     if let Some(dir) = &a.plots {
         let written = crate::diagnosis::plots::write(&rig, &rec, dir)

@@ -50,6 +50,10 @@ pub struct Args {
     /// definition may have been re-made between sessions).
     #[arg(long)]
     refit_marker: bool,
+    /// Also write a self-contained HTML report (parameters with σ, correlations, residuals,
+    /// outliers, held-out figures) here.
+    #[arg(long, value_name = "FILE.html")]
+    report: Option<PathBuf>,
 }
 
 /// How much of the model to fit (the command line's names for
@@ -94,6 +98,11 @@ pub fn run(a: Args) -> Result<()> {
         id.fit.after.n
     );
     print_identification(&id);
+    if let Some(path) = &a.report {
+        let source = super::report_source(&rig, &a.rig.rig, recording, rec.rows.len());
+        let html = crate::report::html::identification_report(&source, &id);
+        super::write_report(path, &html)?;
+    }
     if a.effects.is_empty() {
         return write_model(&rig, &id, recording, &a.out.out);
     }

@@ -6,6 +6,7 @@ mod compensate;
 mod demo;
 mod diagnose;
 mod evaluate;
+mod export;
 mod identify;
 mod import;
 mod observability;
@@ -30,7 +31,7 @@ use std::process::ExitCode;
 /// Files hold millimetres and degrees. Start with `rigcal demo` for a full simulated run, or
 /// `rigcal observability --rig rigs/rv-m2.toml` to see what a rig can identify.
 #[derive(Debug, Parser)]
-#[command(name = "rigcal", version, about, long_about = None, propagate_version = true)]
+#[command(name = "rigcal", version, propagate_version = true)]
 pub struct Cli {
     #[command(flatten)]
     verbosity: Verbosity,
@@ -121,6 +122,8 @@ enum Command {
     Calibrate(calibrate::Args),
     /// Position error along paths of a simulated arm with each model, CEP traces and plots.
     Evaluate(evaluate::Args),
+    /// Take a calibration home: `rigcal export urdf --model M --urdf IN.urdf --out OUT.urdf`.
+    Export(export::Args),
     /// Name the physics the geometric model leaves out of a recording (or say it does not know).
     Diagnose(diagnose::Args),
     /// Simulate a measurement session in a scenario's truth world and write its recording.
@@ -172,6 +175,7 @@ fn dispatch(command: Command) -> anyhow::Result<()> {
         Command::Compensate(a) => compensate::run(a),
         Command::Calibrate(a) => calibrate::run(a),
         Command::Evaluate(a) => evaluate::run(a),
+        Command::Export(a) => export::run(a),
         Command::Diagnose(a) => diagnose::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::SimDevice(a) => sim_device::run(a),
@@ -199,7 +203,7 @@ fn init_logging(verbose: u8) {
 
 /// Reads a recording for a rig, with the path in the error.
 pub(crate) fn read_recording(rig: &Rig, path: &Path) -> anyhow::Result<Recording> {
-    Recording::read(path, rig.chain.joints()).with_context(|| {
+    Recording::read_measured(path, rig.chain.joints()).with_context(|| {
         format!(
             "reading the recording {} for rig `{}` ({} joints)",
             path.display(),
@@ -241,4 +245,26 @@ pub(crate) fn parameter_table(
         s.push('\n');
     }
     s
+}
+
+/// The "fitted from" of an HTML report. (Strings borrowed from the caller's paths.)
+pub(crate) fn report_source<'a>(
+    rig: &'a Rig,
+    rig_path: &'a Path,
+    recording: &'a Path,
+    rows: usize,
+) -> crate::report::html::Source<'a> {
+    crate::report::html::Source {
+        rig: &rig.name,
+        rig_path: rig_path.to_str().unwrap_or("(rig file)"),
+        recording: recording.to_str().unwrap_or("(recording)"),
+        rows,
+    }
+}
+
+/// Writes an HTML report and says where.
+pub(crate) fn write_report(path: &Path, html: &str) -> anyhow::Result<()> {
+    std::fs::write(path, html).with_context(|| format!("cannot write {}", path.display()))?;
+    println!("report written to {}", path.display());
+    Ok(())
 }

@@ -2,10 +2,48 @@
 //! joint's angle (degrees) and against time (s).
 
 use super::{residual_of, standard_fit, DiagnoseError};
+use crate::kinematics::Robot;
 use crate::recording::Recording;
 use crate::rig::Rig;
 use plotters::prelude::*;
 use std::path::Path;
+
+/// The residual of the geometric fit against each moving joint (degrees, or mm) and time,
+/// for the HTML report's evidence plots.
+pub fn residual_series(
+    rig: &Rig,
+    rec: &Recording,
+) -> Result<Vec<crate::report::html::ResidualSeries>, DiagnoseError> {
+    let std = standard_fit(rig, rec)?;
+    let d = &std.data;
+    let r = residual_of(d);
+    let residual: Vec<[f64; 3]> = (0..d.obs.len())
+        .map(|i| [r[3 * i], r[3 * i + 1], r[3 * i + 2]])
+        .collect();
+    let joints = d.chain.joints();
+    let mut out: Vec<_> = d
+        .moving
+        .iter()
+        .map(|&j| crate::report::html::ResidualSeries {
+            label: format!("joint {} ({})", j + 1, joints[j].kind.unit()),
+            joint: Some(j + 1),
+            x: d.obs
+                .iter()
+                .map(|o| joints[j].kind.to_file_units(o.q[j]))
+                .collect(),
+            residual: residual.clone(),
+        })
+        .collect();
+    if let Some(t) = &d.t_s {
+        out.push(crate::report::html::ResidualSeries {
+            label: "time (s)".into(),
+            joint: None,
+            x: t.clone(),
+            residual,
+        });
+    }
+    Ok(out)
+}
 
 /// Writes `residual_vs_q{j}.svg` per moving joint and `residual_vs_time.svg` into `dir`;
 /// returns how many files were written.

@@ -507,3 +507,30 @@ impl EffectReport {
         }
     }
 }
+
+/// The `format` tag of a diagnosis report file.
+pub const DIAGNOSIS_FORMAT: &str = "rigcal-diagnosis";
+/// The diagnosis report file version this build writes.
+pub const DIAGNOSIS_VERSION: u32 = 1;
+
+/// A report as written to a file: tagged like the model file.
+#[derive(Serialize)]
+struct ReportFile<'a> {
+    format: &'static str,
+    version: u32,
+    created_by: String,
+    #[serde(flatten)]
+    report: &'a Report,
+}
+
+impl Report {
+    /// The report as pretty JSON with its `format`, `version` and `created_by`.
+    pub fn to_json(&self) -> Result<String, serde_json::Error> {
+        serde_json::to_string_pretty(&ReportFile {
+            format: DIAGNOSIS_FORMAT,
+            version: DIAGNOSIS_VERSION,
+            created_by: format!("rigcal {}", env!("CARGO_PKG_VERSION")),
+            report: self,
+        })
+    }
+}

@@ -30,6 +30,12 @@ pub const SESSION_TOML: &str = "session.toml";
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum RecordingError {
+    /// The file has a header but no measured row: nothing to fit.
+    #[error("{path}: the recording has no measured rows (a header, but no row with status ok and x_mm, y_mm, z_mm)")]
+    NoMeasuredRows {
+        /// The file.
+        path: PathBuf,
+    },
     /// A file could not be read or written.
     #[error("{path}: {source}")]
     Io {
@@ -251,6 +257,21 @@ impl Recording {
         let mut rec = read_csv(file, &csv_path, joints)?;
         if let Some(dir) = dir {
             rec.session = read_session_info(&dir)?;
+        }
+        Ok(rec)
+    }
+
+    /// Reads a recording that is to be fitted: as [`Recording::read`], and an error naming the
+    /// file when it has no measured row (a session that measured nothing yet, say).
+    pub fn read_measured(path: &Path, joints: &[JointSpec]) -> Result<Recording, RecordingError> {
+        let rec = Self::read(path, joints)?;
+        if rec.measured().next().is_none() {
+            let path = if path.is_dir() {
+                path.join(MEASUREMENTS_CSV)
+            } else {
+                path.to_path_buf()
+            };
+            return Err(RecordingError::NoMeasuredRows { path });
         }
         Ok(rec)
     }
