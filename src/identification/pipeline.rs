@@ -1,11 +1,13 @@
 //! Conventional calibration of a recording, end to end: the geometric fit at a level
 //! ([`super::geometric`]), robust outlier removal that refits after each removal
-//! ([`super::outliers`]), and the fitted model's error on held-out recordings.
+//! ([`super::outliers`], each refit starting from the last: [`super::incremental`]), and the
+//! fitted model's error on held-out recordings.
 //!
 //! The parameters returned are absolute (free frames included), for the rig's own chain, so a
 //! model file written from them stands alone.
 
 use super::geometric::{fit_geometry, Level};
+use super::incremental::GeometricRefits;
 use super::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
 use super::{errors, FitError, FitResult, ResidualStats};
 use crate::kinematics::{Robot, SerialChain, TransformId};
@@ -142,26 +144,34 @@ fn identify_robust(
         return Err(IdentifyError::NothingToFit { level });
     }
     let ids = measured_ids(rec);
+    let mut refits = GeometricRefits::new(rig, &obs, level);
+    let mut first = None;
     let mut last = None;
     let search = remove_outliers(&ids, settings, |kept| {
         // The removed rows stay in the recording (joints, order), they are only not fitted.
-        let fitted: Vec<Observation> = kept.iter().map(|&i| obs[i].clone()).collect();
-        let (chain, result) = identify_at(rig, &fitted, level)?;
+        let (chain, result) = refits.fit(kept)?;
         let residuals = errors(&chain, &obs, &result.params);
         let p = result.free.len();
+        if first.is_none() {
+            first = Some((chain.clone(), result.clone()));
+        }
         last = Some((chain, result));
         Ok::<_, IdentifyError>((residuals, p))
     });
+    let all_rows = |first: Option<(SerialChain, FitResult)>| match first {
+        Some(fitted) => Ok(fitted),
+        None => identify_at(rig, &obs, level),
+    };
     match search {
         Ok((outliers, _)) => {
             let (chain, result) = match last {
                 Some(fitted) => fitted,
-                None => identify_at(rig, &obs, level)?,
+                None => all_rows(first)?,
             };
             Ok((chain, result, outliers, None))
         }
         Err(e @ OutlierError::TooMany { .. }) => {
-            let (chain, result) = identify_at(rig, &obs, level)?;
+            let (chain, result) = all_rows(first)?;
             Ok((chain, result, Vec::new(), Some(e.to_string())))
         }
         Err(OutlierError::Fit(e)) => Err(e),
