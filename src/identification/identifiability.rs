@@ -97,20 +97,31 @@ pub fn stacked_jacobian(
 pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> Identifiability {
     let e = ErrorParams::zeros(robot.layout());
     let m = stacked_jacobian(robot, &e, poses, candidates);
-    analyse_jacobian(&m, candidates)
+    analyse_factor(&triangular_factor(m), poses.len(), candidates)
 }
 
 /// [`analyse`] on [M] already stacked at the nominal parameters (3 rows per pose, one column
 /// per candidate, in priority order).
 ///
 /// Every decision depends on [M] only through the inner products of its columns, so it is
-/// taken on the triangular factor R of [M] = Q·R (Householder, backward stable like the SVD
-/// of [M]): the singular values, the Gram–Schmidt residuals and the least-squares combinations
-/// of R equal those of [M] up to rounding, at a fraction of the cost.
+/// taken on the triangular factor R of [M] = Q·R (Householder, backward stable column by
+/// column like the SVD of [M], so the column scaling may follow it): the singular values, the
+/// Gram–Schmidt residuals and the least-squares combinations of R equal those of [M] up to
+/// rounding, at a fraction of the cost.
 pub fn analyse_jacobian(m: &DMatrix<f64>, candidates: &[usize]) -> Identifiability {
-    let poses = m.nrows() / 3;
+    analyse_factor(&triangular_factor(m.clone()), m.nrows() / 3, candidates)
+}
+
+/// [`analyse_jacobian`] from any matrix R with RᵀR = [M]ᵀ[M] (its triangular factor, say), [M]
+/// stacked over `poses` poses.
+pub(crate) fn analyse_factor(
+    r: &DMatrix<f64>,
+    poses: usize,
+    candidates: &[usize],
+) -> Identifiability {
+    let m = r;
     let norms: Vec<f64> = (0..m.ncols()).map(|c| m.column(c).norm()).collect();
-    let scale = m.nrows() as f64;
+    let scale = (3 * poses) as f64;
     let mut no_effect = Vec::new();
     let mut effective = Vec::new();
     for (c, &n) in norms.iter().enumerate() {
@@ -120,12 +131,16 @@ pub fn analyse_jacobian(m: &DMatrix<f64>, candidates: &[usize]) -> Identifiabili
             effective.push(c);
         }
     }
-    let scaled = DMatrix::from_fn(m.nrows(), effective.len(), |r, k| {
-        m[(r, effective[k])] / norms[effective[k]]
+    let r = DMatrix::from_fn(m.nrows(), effective.len(), |row, k| {
+        m[(row, effective[k])] / norms[effective[k]]
     });
-    let r = triangular_factor(scaled);
     let mut singular_values: Vec<f64> = if r.ncols() > 0 {
-        r.clone().svd(false, false).singular_values.iter().copied().collect()
+        r.clone()
+            .svd(false, false)
+            .singular_values
+            .iter()
+            .copied()
+            .collect()
     } else {
         Vec::new()
     };
@@ -194,11 +209,11 @@ pub fn analyse_jacobian(m: &DMatrix<f64>, candidates: &[usize]) -> Identifiabili
 
 /// The triangular factor R of a tall matrix (the matrix itself when it is not taller than
 /// wide): RᵀR = AᵀA, so R has A's singular values and column inner products.
-fn triangular_factor(a: DMatrix<f64>) -> DMatrix<f64> {
+pub(crate) fn triangular_factor(a: DMatrix<f64>) -> DMatrix<f64> {
     if a.nrows() <= a.ncols() || a.ncols() == 0 {
         return a;
     }
-    a.qr().r()
+    super::dense::householder_r(a)
 }
 
 /// κ of eq. (4) for a matrix: (σ_max/σ_min)² after scaling each column to unit norm.

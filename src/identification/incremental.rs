@@ -7,16 +7,21 @@
 //! that start without another pass over the data, and the iteration continues to the same
 //! tolerance as a fit from the nominal parameters. The least-squares minimum does not depend on
 //! the start, so parameters, σ, κ and residuals equal those of a refit from scratch up to
-//! the fit's tolerance; only the iteration count is smaller. The identifiability analysis of the
-//! kept rows is repeated exactly, on [M] at the nominal parameters computed once for every row;
-//! when its basis changes the refit starts from the nominal parameters, as from scratch.
+//! the fit's tolerance; only the iteration count is smaller.
+//!
+//! The identifiability analysis of the kept rows is repeated exactly, on the triangular factor
+//! of [M] at the nominal parameters ([`super::identifiability`] decides on it). [M] is computed
+//! once for every row and factored in blocks of poses; the factor of the kept rows is the
+//! factor of the stacked block factors (a tall-skinny QR), so removing a row refactors its
+//! block and the small stack only. When the basis changes the refit starts from the nominal
+//! parameters, as from scratch.
 //!
 //! With a free measurement frame the fit starts from a closed-form registration of the kept
 //! rows, which moves with them: such refits run from scratch ([`super::identify_at`]).
 
 use super::fit::{NormalEquations, Problem};
 use super::geometric::Level;
-use super::identifiability::{analyse_jacobian, stacked_jacobian};
+use super::identifiability::{analyse_factor, stacked_jacobian, triangular_factor};
 use super::pipeline::{identify_at, IdentifyError};
 use super::{FitOptions, FitResult, ResidualStats};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
@@ -31,9 +36,9 @@ pub struct GeometricRefits<'a> {
     obs: &'a [Observation],
     level: Level,
     candidates: Vec<usize>,
-    /// [M] at the nominal parameters, every row (3 per observation), candidate columns; `None`
-    /// when refits run from scratch (a free frame).
-    nominal_jacobian: Option<DMatrix<f64>>,
+    /// [M] at the nominal parameters in factored blocks; `None` when refits run from scratch
+    /// (a free frame).
+    factors: Option<BlockFactors>,
     /// Position errors of every row at the nominal parameters: a refit's "before".
     nominal_errors: Vec<Vector3<f64>>,
     last: Option<LastFit>,
@@ -53,9 +58,14 @@ impl<'a> GeometricRefits<'a> {
         let candidates = level.candidates(rig);
         let incremental = rig.calibration.measurement_frame != FrameMode::Free;
         let nominal = ErrorParams::zeros(rig.chain.layout());
-        let nominal_jacobian = incremental.then(|| {
+        let factors = incremental.then(|| {
             let poses: Vec<Vec<f64>> = obs.iter().map(|o| o.q.clone()).collect();
-            stacked_jacobian(&rig.chain, &nominal, &poses, &candidates)
+            BlockFactors::new(stacked_jacobian(
+                &rig.chain,
+                &nominal,
+                &poses,
+                &candidates,
+            ))
         });
         let nominal_errors = if incremental {
             super::errors(&rig.chain, obs, &nominal)
@@ -67,7 +77,7 @@ impl<'a> GeometricRefits<'a> {
             obs,
             level,
             candidates,
-            nominal_jacobian,
+            factors,
             nominal_errors,
             last: None,
         }
@@ -76,7 +86,7 @@ impl<'a> GeometricRefits<'a> {
     /// The fit on the rows `kept` (increasing indices into the observations): the rig's chain
     /// and the fit with absolute frame parameters, as [`identify_at`] on those rows gives them.
     pub fn fit(&mut self, kept: &[usize]) -> Result<(SerialChain, FitResult), IdentifyError> {
-        let Some(m) = &self.nominal_jacobian else {
+        let Some(factors) = &mut self.factors else {
             let fitted: Vec<Observation> = kept.iter().map(|&i| self.obs[i].clone()).collect();
             return identify_at(self.rig, &fitted, self.level);
         };
@@ -86,13 +96,9 @@ impl<'a> GeometricRefits<'a> {
         if self.candidates.is_empty() {
             return Err(IdentifyError::NothingToFit { level: self.level });
         }
-        let basis = if kept.len() == self.obs.len() {
-            analyse_jacobian(m, &self.candidates).basis
-        } else {
-            analyse_jacobian(&select_rows(m, kept), &self.candidates).basis
-        };
+        let basis = analyse_factor(&factors.factor(kept), kept.len(), &self.candidates).basis;
         let chain = &self.rig.chain;
-        let problem = Problem::new(chain, self.obs, Some(kept), &basis, None);
+        let mut problem = Problem::new(chain, self.obs, Some(kept), &basis, None);
         problem.check_size().map_err(IdentifyError::Fit)?;
         let before = ResidualStats::of(
             &kept
@@ -117,6 +123,56 @@ impl<'a> GeometricRefits<'a> {
             normal,
         });
         Ok((chain.clone(), fit))
+    }
+}
+
+/// [M] of every observation (3 rows each) in blocks of poses, each with the triangular factor
+/// of its kept rows.
+struct BlockFactors {
+    m: DMatrix<f64>,
+    /// Per block: the end of its range of observations (exclusive), the kept observations it
+    /// was factored for, and the factor.
+    blocks: Vec<(usize, Vec<usize>, DMatrix<f64>)>,
+}
+
+impl BlockFactors {
+    fn new(m: DMatrix<f64>) -> Self {
+        let n = m.nrows() / 3;
+        // About √(p·n/3) poses a block balance refactoring a block against the stack.
+        let size = ((m.ncols() * n) as f64 / 3.0).sqrt().ceil().max(1.0) as usize;
+        let blocks = (0..n)
+            .step_by(size)
+            .map(|start| {
+                let end = (start + size).min(n);
+                let rows: Vec<usize> = (start..end).collect();
+                let r = triangular_factor(select_rows(&m, &rows));
+                (end, rows, r)
+            })
+            .collect();
+        Self { m, blocks }
+    }
+
+    /// A factor R with RᵀR = [M]ᵀ[M] over the observations `kept` (increasing).
+    fn factor(&mut self, kept: &[usize]) -> DMatrix<f64> {
+        let mut rest = kept;
+        let mut stacked_rows = 0;
+        for (end, rows, r) in &mut self.blocks {
+            let take = rest.partition_point(|&i| i < *end);
+            let (here, after) = rest.split_at(take);
+            rest = after;
+            if here != rows.as_slice() {
+                *rows = here.to_vec();
+                *r = triangular_factor(select_rows(&self.m, here));
+            }
+            stacked_rows += r.nrows();
+        }
+        let mut stack = DMatrix::zeros(stacked_rows, self.m.ncols());
+        let mut at = 0;
+        for (_, _, r) in &self.blocks {
+            stack.rows_mut(at, r.nrows()).copy_from(r);
+            at += r.nrows();
+        }
+        triangular_factor(stack)
     }
 }
 

@@ -19,6 +19,7 @@
 //!
 //! Units: mm and rad inside.
 
+mod dense;
 pub mod fit;
 pub mod geometric;
 pub mod identifiability;

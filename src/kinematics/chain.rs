@@ -381,10 +381,7 @@ impl SerialChain {
                 axes.push((t.r.column(k).into_owned(), t.t));
             }
         }
-        Walk {
-            axes,
-            point: t.t,
-        }
+        Walk { axes, point: t.t }
     }
 
     fn column(

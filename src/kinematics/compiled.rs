@@ -44,9 +44,15 @@ impl Rt {
 
     /// self · other.
     pub(super) fn then(&self, other: &Rt) -> Rt {
+        // Column by column (each a combination of self's columns): cheaper than the generic
+        // matrix product for 3 × 3.
+        let (c0, c1, c2) = (self.r.column(0), self.r.column(1), self.r.column(2));
+        let o = &other.r;
+        let col = |j: usize| c0 * o[(0, j)] + c1 * o[(1, j)] + c2 * o[(2, j)];
+        let t = &other.t;
         Rt {
-            r: self.r * other.r,
-            t: self.t + self.r * other.t,
+            r: Matrix3::from_columns(&[col(0), col(1), col(2)]),
+            t: self.t + c0 * t.x + c1 * t.y + c2 * t.z,
         }
     }
 
@@ -169,16 +175,13 @@ impl ChainAt {
 
     /// The measured point (mm) at joint values `q`.
     pub fn position(&self, q: &[f64]) -> Vector3<f64> {
-        let mut t = Rt::IDENTITY;
-        for (s, step) in self.steps.iter().enumerate() {
-            t = if s == 0 {
-                step.offset
-            } else {
-                t.then(&step.offset)
-            };
-            t.apply_motion(step.motion, q[step.joint]);
-        }
-        t.t + t.r * self.tail
+        self.point(q, None)
+    }
+
+    /// [`ChainAt::position`] with `trig[j]` = [sin q_j, cos q_j] given ([`joint_trig`]), for a
+    /// pose evaluated at many parameter sets.
+    pub fn position_trig(&self, q: &[f64], trig: &[[f64; 2]]) -> Vector3<f64> {
+        self.point(q, Some(trig))
     }
 
     /// The measured point and the Jacobian columns of the layout indices `columns` (mm per
@@ -192,6 +195,54 @@ impl ChainAt {
         columns: &[usize],
         out: &mut [Vector3<f64>],
     ) -> Vector3<f64> {
+        self.point_and_columns(q, None, columns, out)
+    }
+
+    /// [`ChainAt::position_and_columns`] with the joints' sines and cosines given.
+    pub fn position_and_columns_trig(
+        &self,
+        q: &[f64],
+        trig: &[[f64; 2]],
+        columns: &[usize],
+        out: &mut [Vector3<f64>],
+    ) -> Vector3<f64> {
+        self.point_and_columns(q, Some(trig), columns, out)
+    }
+
+    /// The frame after step `s` from the frame `t` after the step before.
+    fn advance(&self, s: usize, t: &Rt, q: &[f64], trig: Option<&[[f64; 2]]>) -> Rt {
+        let step = &self.steps[s];
+        let mut next = if s == 0 {
+            step.offset
+        } else {
+            t.then(&step.offset)
+        };
+        let v = q[step.joint];
+        match (step.motion, trig) {
+            (Motion::Rot(k), Some(trig)) => {
+                let [sin, cos] = trig[step.joint];
+                next.rotate_local(k, sin, cos);
+            }
+            (m, _) => next.apply_motion(m, v),
+        }
+        next
+    }
+
+    fn point(&self, q: &[f64], trig: Option<&[[f64; 2]]>) -> Vector3<f64> {
+        let mut t = Rt::IDENTITY;
+        for s in 0..self.steps.len() {
+            t = self.advance(s, &t, q, trig);
+        }
+        t.t + t.r * self.tail
+    }
+
+    fn point_and_columns(
+        &self,
+        q: &[f64],
+        trig: Option<&[[f64; 2]]>,
+        columns: &[usize],
+        out: &mut [Vector3<f64>],
+    ) -> Vector3<f64> {
         let n = self.steps.len() + 1;
         let mut stack = [Rt::IDENTITY; STACK_SEGMENTS];
         let mut heap = Vec::new();
@@ -202,22 +253,28 @@ impl ChainAt {
             &mut heap
         };
         let mut t = Rt::IDENTITY;
-        for (s, step) in self.steps.iter().enumerate() {
-            t = if s == 0 {
-                step.offset
-            } else {
-                t.then(&step.offset)
-            };
-            t.apply_motion(step.motion, q[step.joint]);
+        for s in 0..self.steps.len() {
+            t = self.advance(s, &t, q, trig);
             frames[s + 1] = t;
         }
         let p = t.t + t.r * self.tail;
+        // The measured point in each segment's frame, for the rotation columns.
+        let mut local_stack = [Vector3::zeros(); STACK_SEGMENTS];
+        let mut local_heap = Vec::new();
+        let local: &mut [Vector3<f64>] = if n <= STACK_SEGMENTS {
+            &mut local_stack[..n]
+        } else {
+            local_heap.resize(n, Vector3::zeros());
+            &mut local_heap
+        };
+        for (l, f) in local.iter_mut().zip(frames.iter()) {
+            *l = f.r.tr_mul(&(p - f.t));
+        }
         for (o, &i) in out.iter_mut().zip(columns) {
             let g = &self.columns[i];
             let f = &frames[g.segment];
             *o = if g.rotation {
-                let local = f.r.tr_mul(&(p - f.t));
-                f.r * g.a.cross(&(local - g.b))
+                f.r * g.a.cross(&(local[g.segment] - g.b))
             } else {
                 f.r * g.a
             };
@@ -242,6 +299,16 @@ impl ChainAt {
             *c = self.joint_params[j];
         }
         self.position_and_columns(q, &cols[..joints.len()], out)
+    }
+}
+
+/// Writes [sin q_j, cos q_j] of every joint value to `out` (for
+/// [`ChainAt::position_trig`] and [`ChainAt::position_and_columns_trig`]; prismatic joints'
+/// entries are not read).
+pub fn joint_trig(q: &[f64], out: &mut [[f64; 2]]) {
+    for (o, v) in out.iter_mut().zip(q) {
+        let (s, c) = v.sin_cos();
+        *o = [s, c];
     }
 }
 
@@ -312,6 +379,14 @@ mod tests {
             assert!((p2 - p).norm() < 1e-9);
             for (k, col) in cols.iter().enumerate() {
                 assert!((col - m.column(k)).norm() < 1e-9, "column {k}");
+            }
+            let mut trig = [[0.0; 2]; 3];
+            joint_trig(&q, &mut trig);
+            assert!((at.position_trig(&q, &trig) - p).norm() < 1e-9);
+            let p3 = at.position_and_columns_trig(&q, &trig, &all, &mut cols);
+            assert!((p3 - p).norm() < 1e-9);
+            for (k, col) in cols.iter().enumerate() {
+                assert!((col - m.column(k)).norm() < 1e-9, "column {k} (trig)");
             }
             let jj = c.joint_jacobian(&q, &e);
             let mut jc = vec![Vector3::zeros(); 3];

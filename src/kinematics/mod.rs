@@ -56,7 +56,7 @@ pub mod urdf;
 pub use chain::{
     five_par_transform, FixedPose, JointKind, JointSpec, LinkParams, SerialChain, Transform,
 };
-pub use compiled::ChainAt;
+pub use compiled::{joint_trig, ChainAt};
 pub use held::HeldChain;
 pub use ik::{solve_position_ik, IkError, IkOptions};
 pub use params::{ErrorModel, ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
