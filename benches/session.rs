@@ -3,7 +3,7 @@
 //! z-then-x-y order (printed once).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rigcal::devices::{open_devices, Backend, SimSetup};
+use rigcal::devices::{open_rig, SimClock};
 use rigcal::session::{
     estimate, plan, run_session, ContactSettings, Ordering, PlanOptions, Progress, RigSpeeds,
     SessionOptions,
@@ -39,12 +39,11 @@ fn session_2200(c: &mut Criterion) {
         |bch| {
             bch.iter(|| {
                 let dir = tempfile::tempdir().unwrap_or_else(|e| panic!("{e}"));
-                let (setup, world) = SimSetup::from_scenario(&sc);
-                let devices =
-                    open_devices(&rig, Backend::Simulated(setup)).unwrap_or_else(|e| panic!("{e}"));
+                let opened =
+                    open_rig(&rig, Some(&sc), SimClock::Virtual).unwrap_or_else(|e| panic!("{e}"));
                 let mut o = SessionOptions::new(dir.path());
                 o.fsync = false;
-                run_session(&rig, devices, Some(world), &nn.points, o, &Progress::Quiet)
+                run_session(&rig, opened, &nn.points, o, &Progress::Quiet)
                     .unwrap_or_else(|e| panic!("{e}"))
             })
         },

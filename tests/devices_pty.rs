@@ -8,7 +8,6 @@ use std::time::{Duration, Instant};
 
 use rigcal::devices::arm_movemaster::MovemasterArm;
 use rigcal::devices::clock::RealClock;
-use rigcal::devices::config::DevicesConfig;
 use rigcal::devices::emulators::table::InjectedFault;
 use rigcal::devices::emulators::{serve_bytes, Profile, SlcanAdapter};
 use rigcal::devices::factory::{sim_emulators, SimSetup};
@@ -16,6 +15,7 @@ use rigcal::devices::panel_penmount::PenMountPanel;
 use rigcal::devices::table_canopen::CanOpenTable;
 use rigcal::devices::{Arm, DeviceError, DeviceErrorKind, Panel, Table};
 use rigcal::kinematics::{ErrorParams, Robot};
+use rigcal::rig::devices::DevicesConfig;
 use rigcal::rig::{Instrument, Rig};
 use rigcal::transports::{SerialTransport, SlcanBus, SlcanBusConfig};
 use serialport::TTYPort;

@@ -48,12 +48,15 @@ impl TrigArm {
 }
 
 impl Measurer for TrigArm {
-    fn measure(&mut self, q: &[f64]) -> Option<rigcal::identification::Observation> {
+    fn measure(
+        &mut self,
+        q: &[f64],
+    ) -> Result<Option<rigcal::identification::Observation>, rigcal::division::MeasureError> {
         self.count += 1;
-        Some(rigcal::identification::Observation {
+        Ok(Some(rigcal::identification::Observation {
             q: q.to_vec(),
             p: self.truth(q),
-        })
+        }))
     }
 }
 
@@ -164,7 +167,7 @@ fn offline_division_works_from_a_recording_without_regions() {
         .iter()
         .map(|q| Observation {
             q: q.clone(),
-            p: arm.measure(q).unwrap().p,
+            p: arm.measure(q).unwrap().unwrap().p,
         })
         .collect();
     let opts = DivisionOptions {

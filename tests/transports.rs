@@ -421,3 +421,73 @@ fn socketcan_open_missing_interface_is_typed_error() {
         Ok(bus) => assert_eq!(bus.interface(), "can0"),
     }
 }
+
+#[cfg(target_os = "linux")]
+#[test]
+fn socketcan_on_tokio_behind_the_bridge_reports_a_missing_interface() {
+    let r = rigcal::transports::BridgedCanBus::spawn("can0", || {
+        rigcal::transports::AsyncSocketCan::open("can0")
+    });
+    match r {
+        Err(TransportError::Open { target, .. }) => assert_eq!(target, "can0"),
+        Err(other) => panic!("unexpected error {other:?}"),
+        // A machine with a real can0 is fine too.
+        Ok(_) => {}
+    }
+}
+
+// ============================================================== tokio bridge
+
+/// An in-memory asynchronous CAN device: answers every frame with the same data on id + 1.
+struct EchoPlusOne {
+    rx: tokio::sync::Mutex<tokio::sync::mpsc::UnboundedReceiver<CanFrame>>,
+    tx: tokio::sync::mpsc::UnboundedSender<CanFrame>,
+}
+
+impl rigcal::transports::AsyncFrames for EchoPlusOne {
+    async fn read(&self) -> Result<CanFrame, TransportError> {
+        self.rx
+            .lock()
+            .await
+            .recv()
+            .await
+            .ok_or(TransportError::Closed)
+    }
+    async fn write(&self, frame: CanFrame) -> Result<(), TransportError> {
+        let id = match frame.id() {
+            rigcal::protocols::can::CanId::Standard(id) => id + 1,
+            rigcal::protocols::can::CanId::Extended(id) => id as u16 + 1,
+        };
+        let reply = CanFrame::new(rigcal::protocols::can::CanId::Standard(id), frame.data())
+            .map_err(|e| TransportError::Protocol {
+                detail: e.to_string(),
+            })?;
+        self.tx.send(reply).map_err(|_| TransportError::Closed)
+    }
+}
+
+#[test]
+fn the_tokio_bridge_carries_frames_both_ways_and_times_out() {
+    let mut bus = rigcal::transports::BridgedCanBus::spawn("mem", || {
+        let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
+        Ok(EchoPlusOne {
+            rx: tokio::sync::Mutex::new(rx),
+            tx,
+        })
+    })
+    .unwrap();
+    let t0 = Instant::now();
+    match bus.recv(Duration::from_millis(30)) {
+        Err(TransportError::Timeout { waited }) => assert!(waited >= Duration::from_millis(30)),
+        other => panic!("{other:?}"),
+    }
+    assert!(t0.elapsed() >= Duration::from_millis(30));
+    for k in 0..5u8 {
+        let f = CanFrame::new(rigcal::protocols::can::CanId::Standard(0x600), &[k, 2, 3]).unwrap();
+        bus.send(&f).unwrap();
+        let r = bus.recv(Duration::from_secs(1)).unwrap();
+        assert_eq!(r.id(), rigcal::protocols::can::CanId::Standard(0x601));
+        assert_eq!(r.data(), &[k, 2, 3]);
+    }
+    drop(bus);
+}

@@ -8,8 +8,11 @@
 //! on: the run ends as an uninterrupted one would.
 
 use super::{Calibrated, CalibrationError, CalibrationOptions, Source};
+use crate::division::DivisionError;
 use crate::rig::Rig;
-use crate::session::{recorded_requests, RecordedRequest, Session, SessionMeasurer, SessionReport};
+use crate::session::{
+    recorded_requests, RecordedRequest, Session, SessionError, SessionMeasurer, SessionReport,
+};
 use std::path::{Path, PathBuf};
 
 /// How `session.toml` notes a planning-mode session; the options that shaped it follow.
@@ -174,11 +177,21 @@ pub fn through_session<'r>(
         dir: PathBuf::from(dir),
         source: Box::new(source),
     };
-    // A session fault ends the division early: it, not the division's view of it, is the error.
-    if let Some(source) = measurer.into_error() {
-        return Err(stopped(source));
-    }
-    let calibrated = calibrated?;
+    // A session fault ends the division at once: it, not the division's view of it, is the error.
+    let calibrated = calibrated.map_err(|e| match e {
+        CalibrationError::Division(DivisionError::Measurement(m)) => {
+            match m.source.downcast::<SessionError>() {
+                Ok(source) => CalibrationError::Session {
+                    dir: PathBuf::from(dir),
+                    source,
+                },
+                Err(other) => CalibrationError::Division(DivisionError::Measurement(
+                    crate::division::MeasureError { source: other },
+                )),
+            }
+        }
+        e => e,
+    })?;
     let report = session.finish().map_err(stopped)?;
     Ok(SessionCalibrated { calibrated, report })
 }

@@ -4,7 +4,9 @@ use super::{
     check_scenario_rig, design_basis, Calibrated, CalibrationError, CalibrationOptions,
     DivisionFigures, Figures, LearnerFigures, Source,
 };
-use crate::division::{divide, forget_region, DivisionOptions, DivisionReport, Measurer, Mode};
+use crate::division::{
+    divide, forget_region, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
+};
 use crate::identification::Observation;
 use crate::learners::{self, Learner};
 use crate::model::{
@@ -40,11 +42,11 @@ impl WorldMeasurer {
 }
 
 impl Measurer for WorldMeasurer {
-    fn measure(&mut self, q: &[f64]) -> Option<Observation> {
+    fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, MeasureError> {
         self.seq += 1;
         self.t_s += self.step_s;
-        let p = self.world.measure_at(q, self.t_s, self.seq, 0).position?;
-        Some(Observation { q: q.to_vec(), p })
+        let p = self.world.measure_at(q, self.t_s, self.seq, 0).position;
+        Ok(p.map(|p| Observation { q: q.to_vec(), p }))
     }
 }
 

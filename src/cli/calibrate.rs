@@ -174,11 +174,12 @@ fn open_session<'r>(
     note: String,
 ) -> Result<crate::session::Session<'r>> {
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
-    let (devices, world) = super::session::open_rig(rig, scenario.as_ref(), false)?;
+    let opened =
+        crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?;
     let mut opts = crate::session::SessionOptions::new(dir);
     opts.seed = a.settings.seed;
     opts.resume = a.resume;
-    opts.fsync = !devices.clock.is_virtual();
+    opts.fsync = !opened.devices.clock.is_virtual();
     opts.info = crate::recording::SessionInfo {
         rig: Some(a.rig.display().to_string()),
         scenario: a.sim.as_ref().map(|p| p.display().to_string()),
@@ -186,5 +187,5 @@ fn open_session<'r>(
         notes: Some(note),
         ..Default::default()
     };
-    Ok(crate::session::Session::open(rig, devices, world, opts)?)
+    Ok(crate::session::Session::open(rig, opened, opts)?)
 }

@@ -241,11 +241,11 @@ fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Re
             &rig,
             &all,
             &RigSpeeds::of(&rig),
-            &ContactSettings::default()
+            &ContactSettings::of(&rig)
         ))
     );
-    let (devices, world) = super::session::open_rig(&rig, Some(&sc), false)?;
-    opts.fsync = !devices.clock.is_virtual();
+    let opened = crate::devices::open_rig(&rig, Some(&sc), crate::devices::SimClock::Virtual)?;
+    opts.fsync = !opened.devices.clock.is_virtual();
     let notes = format!(
         "rigcal session: {} points, dry run on the virtual clock",
         points.len()
@@ -257,14 +257,7 @@ fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Re
         notes: Some(notes),
         ..Default::default()
     };
-    let r = run_session(
-        &rig,
-        devices,
-        world,
-        &points,
-        opts,
-        &Progress::auto(points.len()),
-    )?;
+    let r = run_session(&rig, opened, &points, opts, &Progress::auto(points.len()))?;
     print_session(dir, &r);
     Ok(())
 }

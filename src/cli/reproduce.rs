@@ -1,9 +1,9 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
 use crate::neural::network::Method;
-use crate::report::{plot_log_curves, CurvePanel};
 use crate::reproduce::seed001::{
-    fig7, table11, table18, table5, table7, Fig7, ReproOptions, Table, TABLE5_POSES,
+    check_figures, run_fig7, run_table, tables_for, write_fig7, write_table, ReproOptions,
+    REPRODUCED_FIGURES, REPRODUCED_TABLES, TABLE5_POSES,
 };
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
@@ -60,93 +60,30 @@ pub fn run(a: Args) -> Result<()> {
         ..ReproOptions::default()
     };
     let everything = a.tables.is_empty() && a.figures.is_empty();
-    let tables = if everything {
-        vec![5, 7, 11, 18]
+    let (tables, figures) = if everything {
+        (REPRODUCED_TABLES.to_vec(), REPRODUCED_FIGURES.to_vec())
     } else {
-        a.tables.clone()
+        (tables_for(&a.tables)?, a.figures.clone())
     };
-    let figures = if everything {
-        vec![7]
-    } else {
-        a.figures.clone()
-    };
-    if let Some(f) = figures.iter().find(|&&f| f != 7) {
-        bail!("figure {f} is not reproduced: use 7");
-    }
+    check_figures(&figures)?;
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    let mut done: Vec<u32> = Vec::new();
-    for t in tables {
-        let key = match t {
-            4 | 5 => 5,
-            6..=8 => 7,
-            10..=12 => 11,
-            16..=18 => 18,
-            other => bail!("table {other} is not reproduced: use 5, 7, 11, 12, 17 or 18"),
-        };
-        if done.contains(&key) {
-            continue;
-        }
-        done.push(key);
-        let start = std::time::Instant::now();
-        let table: Table = match key {
-            5 => table5(&o)?,
-            7 => table7(&o)?,
-            11 => table11(&o, a.hidden)?,
-            _ => table18(&o, a.hidden)?,
-        };
+    for key in tables {
+        let (table, took) = run_table(key, &o, a.hidden)?;
         let text = table.render();
-        println!("{text}  ({:.1} s)\n", start.elapsed().as_secs_f64());
+        println!("{text}  ({:.1} s)\n", took.as_secs_f64());
         if let Some(dir) = &a.out {
-            let f = dir.join(format!("seed001-table-{key}.txt"));
-            std::fs::write(&f, &text).with_context(|| format!("cannot write {}", f.display()))?;
+            write_table(dir, key, &text)?;
         }
     }
     if figures.contains(&7) {
-        let start = std::time::Instant::now();
-        let fig = fig7(&o)?;
-        println!(
-            "{}  ({:.1} s)\n",
-            fig.render(),
-            start.elapsed().as_secs_f64()
-        );
+        let (fig, took) = run_fig7(&o)?;
+        println!("{}  ({:.1} s)\n", fig.render(), took.as_secs_f64());
         if let Some(dir) = &a.out {
-            write_fig7(&fig, dir)?;
+            let (svg, csv) = write_fig7(&fig, dir)?;
+            println!("plot: {}  data: {}", svg.display(), csv.display());
         }
     }
-    Ok(())
-}
-
-/// Writes Fig. 7 as CSV and as an SVG of three log-log panels.
-fn write_fig7(fig: &Fig7, dir: &std::path::Path) -> Result<()> {
-    let csv = dir.join("seed001-fig7.csv");
-    std::fs::write(&csv, fig.csv()).with_context(|| format!("cannot write {}", csv.display()))?;
-    let panels: Vec<CurvePanel> = fig
-        .cases
-        .iter()
-        .enumerate()
-        .map(|(c, curves)| CurvePanel {
-            title: format!("case {}", c + 1),
-            curves: curves
-                .iter()
-                .map(|k| {
-                    (
-                        format!("scheme {}", k.scheme),
-                        k.points.iter().map(|&(i, e)| (i as f64, e)).collect(),
-                    )
-                })
-                .collect(),
-        })
-        .collect();
-    let svg = dir.join("seed001-fig7.svg");
-    plot_log_curves(
-        &svg,
-        "Seed 001 Fig. 7: mean validation error during training (2-DOF SCARA)",
-        "Levenberg–Marquardt iteration",
-        "mean validation error (mm)",
-        &panels,
-    )?;
-    println!("plot: {}  data: {}", svg.display(), csv.display());
     Ok(())
 }

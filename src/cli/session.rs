@@ -5,8 +5,7 @@
 //! On the virtual clock (a dry run without `--real-time`) nothing waits: the report gives the
 //! rig time the session would have taken.
 
-use crate::devices::clock::RealClock;
-use crate::devices::{open_devices, Backend, SimSetup};
+use crate::devices::{open_rig, SimClock};
 use crate::kinematics::Robot;
 use crate::recording::SessionInfo;
 use crate::rig::Rig;
@@ -120,12 +119,17 @@ pub fn run(a: Args) -> Result<()> {
         &rig,
         &[registration, points.clone()].concat(),
         &RigSpeeds::of(&rig),
-        &ContactSettings::default(),
+        &ContactSettings::of(&rig),
     );
     println!("{}", super::plan::describe(&est));
 
-    let (devices, world) = open_rig(&rig, scenario.as_ref(), a.real_time)?;
-    let virtual_clock = devices.clock.is_virtual();
+    let clock = if a.real_time {
+        SimClock::Real
+    } else {
+        SimClock::Virtual
+    };
+    let opened = open_rig(&rig, scenario.as_ref(), clock)?;
+    let virtual_clock = opened.devices.clock.is_virtual();
     let mut opts = SessionOptions::new(&a.out);
     opts.resume = a.resume;
     opts.registration_points = a.registration_points;
@@ -158,7 +162,7 @@ pub fn run(a: Args) -> Result<()> {
         ..Default::default()
     };
     let progress = Progress::auto(points.len());
-    let report = run_session(&rig, devices, world, &points, opts, &progress)?;
+    let report = run_session(&rig, opened, &points, opts, &progress)?;
     println!(
         "session {}: {} points, {} measured{}, {} skipped, {} via rows, {} retries, {} faults cleared",
         a.out.display(),
@@ -218,27 +222,4 @@ pub(crate) fn load_scenario(
         );
     }
     Ok(Some(s))
-}
-
-/// The rig's devices: emulators on the scenario's world (virtual clock unless `real_time`), or
-/// what the rig file's `[devices]` says.
-pub(crate) fn open_rig(
-    rig: &Rig,
-    scenario: Option<&Scenario>,
-    real_time: bool,
-) -> Result<(
-    crate::devices::RigDevices,
-    Option<crate::devices::emulators::world_physics::SharedWorld>,
-)> {
-    let (backend, world) = match scenario {
-        Some(s) => {
-            let (mut setup, world): (SimSetup, _) = SimSetup::from_scenario(s);
-            if real_time {
-                setup.clock = RealClock::shared();
-            }
-            (Backend::Simulated(setup), Some(world))
-        }
-        None => (Backend::RigFile, None),
-    };
-    Ok((open_devices(rig, backend)?, world))
 }

@@ -4,13 +4,11 @@
 //! every random draw depends on (seed, seq, attempt) only, so a seed gives the same bytes.
 //! Files: mm and degrees.
 
-use crate::identification::random_poses;
 use crate::kinematics::Robot;
-use crate::recording::{read_poses, RegistrationInfo, SessionInfo};
-use crate::rig::{Instrument, Rig};
-use crate::world::{setup_rng, Scenario};
+use crate::recording::read_poses;
+use crate::world::{check_same_rig, random_session_poses, simulate_session, Scenario};
 use anyhow::{bail, Context, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `rigcal simulate`.
 #[derive(Debug, clap::Args)]
@@ -39,25 +37,17 @@ pub struct Args {
     out: super::OutArg,
 }
 
-/// Index of the setup generator that draws `--random` poses (apart from the effects').
-const POSES_STREAM: usize = usize::MAX - 1;
-
 pub fn run(a: Args) -> Result<()> {
     let rig = a.rig.load()?;
     let scenario = Scenario::load(&a.scenario, a.seed)?;
-    check_same_rig(&rig, &scenario, &a.rig.rig)?;
+    check_same_rig(&rig, &a.rig.rig, &scenario)?;
     let poses = match (&a.poses, a.random) {
         (Some(path), None) => read_poses(path, rig.chain.joints())
             .with_context(|| format!("reading poses from {}", path.display()))?,
-        (None, Some(n)) => {
-            let mut rng = setup_rng(scenario.seed, POSES_STREAM);
-            random_poses(rig.chain.joints(), rig.held(), n, &mut rng)
-        }
+        (None, Some(n)) => random_session_poses(&rig, &scenario, n),
         _ => bail!("give exactly one of --poses FILE and --random N"),
     };
-    let world = scenario.world();
-    let mut rec = world.record(&poses, 1);
-    rec.session = Some(session_info(&rig, &scenario, &a));
+    let rec = simulate_session(&rig, &a.rig.rig, &scenario, &poses)?;
     rec.write_dir(&a.out.out)?;
     let measured = rec.measured().count();
     println!(
@@ -71,46 +61,4 @@ pub fn run(a: Args) -> Result<()> {
         a.out.out.display()
     );
     Ok(())
-}
-
-fn check_same_rig(rig: &Rig, scenario: &Scenario, rig_path: &Path) -> Result<()> {
-    if rig.name != scenario.rig.name || rig.instrument != scenario.rig.instrument {
-        bail!(
-            "scenario {} assumes rig {} (`{}`), but --rig {} is `{}`",
-            scenario.path.display(),
-            scenario.rig_path.display(),
-            scenario.rig.name,
-            rig_path.display(),
-            rig.name
-        );
-    }
-    Ok(())
-}
-
-fn session_info(rig: &Rig, scenario: &Scenario, a: &Args) -> SessionInfo {
-    // The simulated session measures through the nominal registration, as a session before any
-    // registration step would.
-    let registration = match &rig.instrument {
-        Instrument::TablePanel(tp) => Some(RegistrationInfo {
-            translation_mm: tp.table_to_world_mm.into(),
-            rpy_deg: [0.0; 3],
-            rms_mm: None,
-        }),
-        _ => None,
-    };
-    SessionInfo {
-        rig: Some(a.rig.rig.display().to_string()),
-        scenario: Some(a.scenario.display().to_string()),
-        seed: Some(scenario.seed),
-        registration,
-        notes: Some(format!(
-            "rigcal simulate: {}",
-            if scenario.description.is_empty() {
-                "simulated session"
-            } else {
-                &scenario.description
-            }
-        )),
-        ..Default::default()
-    }
 }

@@ -11,18 +11,24 @@
 //! targets (resolution from the rig file), so rounding never accumulates, and the joint values
 //! reported as commanded are the rounded ones. After a move the driver reads `WH` (the
 //! controller's Cartesian pose) and checks it against the nominal forward kinematics.
+//!
+//! A move may be waited for in slices ([`Arm::start_move`], then [`Arm::wait_moved`]). If the
+//! caller stops waiting (a fault elsewhere cancelled the motion: the controller has no stop
+//! command, so the arm goes on to its target), the move stays pending in the driver, and the
+//! next command first reads its outstanding `ER` reply (within the move's own timeout), so a
+//! reply is never taken for another command's.
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::devices::config::ArmConfig;
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::protocols::movemaster::{
     quantise_joint_move, Command, Decimal, ErrorStatus, JointNumber, LineFramer, MovemasterError,
     Resolution, SpeedLevel, WhereReply,
 };
+use crate::rig::devices::ArmConfig;
 use crate::transports::{ByteTransport, TransportError};
 
 /// The Movemaster driver over any byte transport.
@@ -36,6 +42,21 @@ pub struct MovemasterArm<T: ByteTransport> {
     framer: LineFramer,
     lines: VecDeque<Result<Vec<u8>, MovemasterError>>,
     commanded_counts: Option<[i64; 5]>,
+    pending: Option<PendingMove>,
+}
+
+/// A move whose `ER` reply (its end) has not been read yet.
+#[derive(Debug)]
+struct PendingMove {
+    /// The move command as sent.
+    command: String,
+    /// The absolute counts it commands.
+    counts: [i64; 5],
+    /// When it was sent and when its timeout runs out (clock time).
+    started: Duration,
+    deadline: Duration,
+    /// Timeout of the `WH` check that follows.
+    check_timeout: Duration,
 }
 
 fn text(cmd: &Command) -> String {
@@ -77,6 +98,7 @@ impl<T: ByteTransport> MovemasterArm<T> {
             framer: LineFramer::default(),
             lines: VecDeque::new(),
             commanded_counts: None,
+            pending: None,
         })
     }
 
@@ -136,15 +158,35 @@ impl<T: ByteTransport> MovemasterArm<T> {
     /// Reads one reply line, waiting at most `timeout` (clock time).
     fn read_line(&mut self, request: &str, timeout: Duration) -> Result<Vec<u8>, DeviceError> {
         let start = self.clock.now();
-        let deadline = start + timeout;
+        match self.next_line(timeout)? {
+            Some(Ok(line)) => Ok(line),
+            Some(Err(e)) => Err(DeviceError::Protocol {
+                device: DeviceName::Arm,
+                request: request.into(),
+                detail: e.to_string(),
+            }),
+            None => Err(DeviceError::Timeout {
+                device: DeviceName::Arm,
+                waiting_for: format!("the reply to `{request}`"),
+                waited: self.clock.now().saturating_sub(start),
+                target: request.into(),
+                current: self.current(),
+            }),
+        }
+    }
+
+    /// The next reply line within `timeout` (clock time), `None` if none came (cheap: a slice
+    /// of a longer wait ends so); a garbled line as the framer's error.
+    #[allow(clippy::type_complexity)]
+    fn next_line(
+        &mut self,
+        timeout: Duration,
+    ) -> Result<Option<Result<Vec<u8>, MovemasterError>>, DeviceError> {
+        let deadline = self.clock.now() + timeout;
         let mut buf = [0u8; 64];
         loop {
             if let Some(line) = self.lines.pop_front() {
-                return line.map_err(|e| DeviceError::Protocol {
-                    device: DeviceName::Arm,
-                    request: request.into(),
-                    detail: e.to_string(),
-                });
+                return Ok(Some(line));
             }
             let remaining = deadline.saturating_sub(self.clock.now());
             match self.io.read(&mut buf, remaining) {
@@ -152,47 +194,88 @@ impl<T: ByteTransport> MovemasterArm<T> {
                     let lines = self.framer.push(buf.get(..n).unwrap_or(&[]));
                     self.lines.extend(lines);
                 }
-                Err(TransportError::Timeout { .. }) => {
-                    return Err(DeviceError::Timeout {
-                        device: DeviceName::Arm,
-                        waiting_for: format!("the reply to `{request}`"),
-                        waited: self.clock.now().saturating_sub(start),
-                        target: request.into(),
-                        current: self.current(),
-                    })
-                }
+                Err(TransportError::Timeout { .. }) => return Ok(None),
                 Err(e) => return Err(self.transport(e)),
             }
             if self.lines.is_empty() && self.clock.now() >= deadline {
-                return Err(DeviceError::Timeout {
-                    device: DeviceName::Arm,
-                    waiting_for: format!("the reply to `{request}`"),
-                    waited: self.clock.now().saturating_sub(start),
-                    target: request.into(),
-                    current: self.current(),
-                });
+                return Ok(None);
             }
         }
     }
 
     fn read_status(&mut self, after: &str, timeout: Duration) -> Result<ErrorStatus, DeviceError> {
+        self.request_status()?;
+        let line = self.read_line(&format!("ER after {after}"), timeout)?;
+        decode_status(after, &line)
+    }
+
+    /// Drops what the controller sent so far and asks for its error state (`ER`).
+    fn request_status(&mut self) -> Result<(), DeviceError> {
         self.io.clear_input().map_err(|e| self.transport(e))?;
         self.framer = LineFramer::default();
         self.lines.clear();
-        self.send(&Command::ErrorRead)?;
-        let line = self.read_line(&format!("ER after {after}"), timeout)?;
-        ErrorStatus::decode_body(&line).map_err(|e| DeviceError::Protocol {
-            device: DeviceName::Arm,
-            request: format!("ER after {after}"),
-            detail: e.to_string(),
-        })
+        self.send(&Command::ErrorRead)
     }
 
     /// Sends `cmd`, then `ER`, and waits for its reply (the end of any motion).
     fn command(&mut self, cmd: &Command, timeout: Duration) -> Result<(), DeviceError> {
         let t = text(cmd);
         self.send(cmd)?;
-        match self.read_status(&t, timeout)? {
+        let status = self.read_status(&t, timeout)?;
+        self.outcome(t, status)
+    }
+
+    /// A pending move's end: reads its `ER` reply, waiting at most `slice`; `Ok(false)` while
+    /// the reply has not come and the move's timeout has not run out.
+    fn finish_pending(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        let Some(deadline) = self.pending.as_ref().map(|p| p.deadline) else {
+            return Ok(true);
+        };
+        let left = deadline.saturating_sub(self.clock.now());
+        let line = self.next_line(slice.min(left));
+        if matches!(line, Ok(None)) && self.clock.now() < deadline {
+            return Ok(false);
+        }
+        let Some(p) = self.pending.take() else {
+            return Ok(true);
+        };
+        let request = format!("ER after {}", p.command);
+        let line = match line? {
+            Some(Ok(line)) => line,
+            Some(Err(e)) => {
+                return Err(DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request,
+                    detail: e.to_string(),
+                })
+            }
+            None => {
+                return Err(DeviceError::Timeout {
+                    device: DeviceName::Arm,
+                    waiting_for: format!("the reply to `{request}`"),
+                    waited: self.clock.now().saturating_sub(p.started),
+                    target: request,
+                    current: self.current(),
+                })
+            }
+        };
+        let status = decode_status(&p.command, &line)?;
+        self.outcome(p.command, status)?;
+        self.commanded_counts = Some(p.counts);
+        let done = self.counts_to_q(&p.counts);
+        self.check_where(&done, p.check_timeout)?;
+        Ok(true)
+    }
+
+    /// Finishes a move whose wait was abandoned before the next command goes out.
+    fn settle(&mut self) -> Result<(), DeviceError> {
+        while !self.finish_pending(Duration::MAX)? {}
+        Ok(())
+    }
+
+    /// The controller's error state after `command`: an error mode becomes its error.
+    fn outcome(&mut self, command: String, status: ErrorStatus) -> Result<(), DeviceError> {
+        match status {
             ErrorStatus::None => Ok(()),
             status => {
                 let joints_deg = self
@@ -203,7 +286,7 @@ impl<T: ByteTransport> MovemasterArm<T> {
                     // Where the arm is is unknown now: it must be homed again.
                     self.commanded_counts = None;
                 }
-                Err(error_mode(t, status, joints_deg))
+                Err(error_mode(command, status, joints_deg))
             }
         }
     }
@@ -227,6 +310,14 @@ impl<T: ByteTransport> MovemasterArm<T> {
         }
         Ok(())
     }
+}
+
+fn decode_status(after: &str, line: &[u8]) -> Result<ErrorStatus, DeviceError> {
+    ErrorStatus::decode_body(line).map_err(|e| DeviceError::Protocol {
+        device: DeviceName::Arm,
+        request: format!("ER after {after}"),
+        detail: e.to_string(),
+    })
 }
 
 fn error_mode(command: String, status: ErrorStatus, joints_deg: Option<Vec<f64>>) -> DeviceError {
@@ -253,6 +344,11 @@ fn error_mode(command: String, status: ErrorStatus, joints_deg: Option<Vec<f64>>
 
 impl<T: ByteTransport> Arm for MovemasterArm<T> {
     fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        // Homing is how the session recovers from a lost reply: an abandoned move that never
+        // ends must not stop it.
+        if let Err(e) = self.settle() {
+            tracing::warn!("arm: the abandoned move before homing did not end cleanly: {e}");
+        }
         self.command(&Command::Nest, timeout)?;
         let nest: Vec<f64> = self.cfg.nest_deg.iter().map(|d| d.to_radians()).collect();
         let deg = self.controller_deg(&nest);
@@ -279,10 +375,18 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
             key: "arm.speed".into(),
             reason: e.to_string(),
         })?;
+        self.settle()?;
         self.command(&Command::Speed { level, accel: None }, timeout)
     }
 
     fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        let done = self.start_move(q, timeout)?;
+        while !self.wait_moved(timeout)? {}
+        Ok(done)
+    }
+
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.settle()?;
         let Some(old) = self.commanded_counts else {
             return Err(DeviceError::NotReady {
                 device: DeviceName::Arm,
@@ -323,11 +427,22 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
                 })?;
             cmd = Command::MoveJoint { joint, angle };
         }
-        self.command(&cmd, timeout)?;
-        self.commanded_counts = Some(counts);
-        let done = self.counts_to_q(&counts);
-        self.check_where(&done, timeout)?;
-        Ok(done)
+        let command = text(&cmd);
+        self.send(&cmd)?;
+        self.request_status()?;
+        let started = self.clock.now();
+        self.pending = Some(PendingMove {
+            command,
+            counts,
+            started,
+            deadline: started + timeout,
+            check_timeout: timeout,
+        });
+        Ok(self.counts_to_q(&counts))
+    }
+
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.finish_pending(slice)
     }
 
     fn commanded(&self) -> Option<Vec<f64>> {
@@ -335,6 +450,7 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
     }
 
     fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.settle()?;
         self.io.clear_input().map_err(|e| self.transport(e))?;
         self.framer = LineFramer::default();
         self.lines.clear();
@@ -353,6 +469,7 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
     }
 
     fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        self.settle()?;
         Ok(match self.read_status("status query", timeout)? {
             ErrorStatus::None => ArmStatus::Ok,
             ErrorStatus::Hardware => ArmStatus::HardwareError,
@@ -361,6 +478,7 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
     }
 
     fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.settle()?;
         match self.read_status("reset", timeout)? {
             ErrorStatus::None => Ok(()),
             ErrorStatus::Hardware => Err(DeviceError::ResetNotSafe {

@@ -3,10 +3,23 @@
 //!
 //! The final approach speed is chosen so that (panel latency + bus latency) × speed ≤ the
 //! allowed overshoot (0.005 mm by default, rig file), both latencies from the rig file.
+//!
+//! Two forms: [`measure_contact`] on plain devices (one blocking wait for the touch), and
+//! [`approach`], the session's, on its asynchronous device handles: the wait for the touch
+//! races the drives' supervision alarm and the timeout, so a drive fault or a lost heartbeat
+//! stops the table at once instead of after the timeout. (On real time the panel and the table
+//! answer from their own threads; the hand-over adds microseconds to the latency the speed
+//! rule allows for, a negligible overshoot at approach speeds.)
 
 use std::time::Duration;
 
+use crate::devices::actor::DeviceActor;
+use crate::devices::pace::Pace;
+use crate::devices::supervision::Alarm;
 use crate::devices::traits::{DeviceError, Panel, Table, Touch};
+
+/// Timeout of the device exchanges around a contact.
+const IO: Duration = Duration::from_secs(1);
 
 /// The largest approach speed (mm/s) for which the overshoot between the touch and the position
 /// read stays within `max_overshoot_mm`.
@@ -73,6 +86,93 @@ pub fn measure_contact(
         Err(e) => {
             let _ = table.halt(io);
             Err(e)
+        }
+    }
+}
+
+/// One approach of the table under the pin.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Approach {
+    /// Where the table stands in x and y (mm); it must already stand at the start.
+    pub xy_mm: [f64; 2],
+    /// The approach's start (mm, table z).
+    pub z_from_mm: f64,
+    /// Its end (mm): the table rises to here unless a touch comes first.
+    pub z_to_mm: f64,
+    /// The approach speed (mm/s).
+    pub speed_mm_s: f64,
+    /// How long to wait for the touch.
+    pub timeout: Duration,
+}
+
+/// How the wait for a touch ended.
+enum Ended {
+    Touch(Touch),
+    Failed(DeviceError),
+    TimedOut,
+}
+
+/// Measures one contact on the session's device handles (see the module docs): the table
+/// rises from `a.z_from_mm` towards `a.z_to_mm` and the first of a touch, a drive alarm or the
+/// timeout ends the wait. On a touch the position is read at once and the table halted; on an
+/// alarm the table is halted and the drive's error returned; without a touch, the table is
+/// halted and [`DeviceError::MissedTouch`] returned.
+pub async fn approach(
+    table: &DeviceActor<dyn Table>,
+    panel: &DeviceActor<dyn Panel>,
+    alarm: &Alarm,
+    pace: &Pace,
+    a: &Approach,
+) -> Result<Contact, DeviceError> {
+    panel.run(IO, |p| p.clear()).await?;
+    let speed = a.speed_mm_s;
+    table.run(IO, move |t| t.set_speed(speed, IO)).await?;
+    let target = [a.xy_mm[0], a.xy_mm[1], a.z_to_mm];
+    table.run(IO, move |t| t.start_move(target, IO)).await?;
+    let deadline = pace.now() + a.timeout;
+    let ended = tokio::select! {
+        biased;
+        e = alarm.raised() => Ended::Failed(e),
+        t = first_touch(panel, pace, deadline) => match t {
+            Ok(t) => Ended::Touch(t),
+            Err(e) => Ended::Failed(e),
+        },
+        () = pace.until(deadline) => Ended::TimedOut,
+    };
+    match ended {
+        Ended::Touch(touch) => {
+            let table_mm = table.run(IO, |t| t.position(IO)).await?;
+            table.run(IO, |t| t.halt(IO)).await?;
+            Ok(Contact { table_mm, touch })
+        }
+        Ended::TimedOut => {
+            let reached = table.run(IO, |t| t.halt(IO)).await.ok();
+            Err(DeviceError::MissedTouch {
+                z_from_mm: a.z_from_mm,
+                z_to_mm: a.z_to_mm,
+                reached_mm: reached,
+            })
+        }
+        Ended::Failed(e) => {
+            // The fault is what counts; a failing halt adds nothing to it.
+            let _ = table.run(IO, |t| t.halt(IO)).await;
+            Err(e)
+        }
+    }
+}
+
+/// The first touch the panel reports, waited for in slices up to `deadline` (then this waits
+/// on, for the timeout branch beside it to end the race).
+async fn first_touch(
+    panel: &DeviceActor<dyn Panel>,
+    pace: &Pace,
+    deadline: Duration,
+) -> Result<Touch, DeviceError> {
+    loop {
+        let slice = pace.slice_until(deadline);
+        match panel.run(slice, move |p| p.poll_touch(slice)).await? {
+            Some(t) => return Ok(t),
+            None => pace.yield_now().await,
         }
     }
 }

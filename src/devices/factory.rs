@@ -5,25 +5,31 @@
 //! Transports per device come from `[devices]`: `sim` (an emulator behind a polled link), a
 //! serial port path (arm, panel), `can0` / `socketcan:can0` or `slcan:/dev/ttyACM0` (table).
 //! Nothing else differs between a dry run and the rig; no cargo feature chooses.
+//!
+//! A session opens its rig with [`open_rig`]: the devices plus the opaque [`RigHook`] through
+//! which a dry run's world learns what the protocols do not carry (see [`crate::devices::hook`]).
 
 use std::sync::{Arc, Mutex};
 
 use crate::devices::arm_movemaster::MovemasterArm;
 use crate::devices::clock::{RealClock, SharedClock, VirtualClock};
-use crate::devices::config::{DevicesConfig, TableConfig};
 use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
 use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
 use crate::devices::emulators::sensor::SimPointSensor;
 use crate::devices::emulators::table::{TableEmulator, TableFaultHandle};
+use crate::devices::emulators::world_physics::WorldHook;
 use crate::devices::emulators::{
     NominalPhysics, PolledCan, PolledSerial, SharedPhysics, SharedTable, TableTruth,
 };
+use crate::devices::hook::{NoHook, RigHook};
 use crate::devices::panel_penmount::PenMountPanel;
 use crate::devices::safety::{LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
+use crate::rig::devices::{DevicesConfig, TableConfig};
 use crate::rig::{Instrument, Rig, TablePanel};
 use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
+use crate::world::Scenario;
 
 /// The simulated world the emulators use.
 #[derive(Clone)]
@@ -260,8 +266,14 @@ fn open_can(t: &TableConfig) -> Result<Box<dyn CanBus>, DeviceError> {
     let ifname = tr.strip_prefix("socketcan:").unwrap_or(tr);
     #[cfg(target_os = "linux")]
     {
+        // socketcan's tokio socket on an I/O thread; the driver (on its own device thread)
+        // talks to it through the blocking bridge.
+        let name = ifname.to_string();
         Ok(Box::new(
-            crate::transports::SocketCanBus::open(ifname).map_err(err)?,
+            crate::transports::BridgedCanBus::spawn(ifname, move || {
+                crate::transports::AsyncSocketCan::open(&name)
+            })
+            .map_err(err)?,
         ))
     }
     #[cfg(not(target_os = "linux"))]
@@ -270,6 +282,70 @@ fn open_can(t: &TableConfig) -> Result<Box<dyn CanBus>, DeviceError> {
             key: "table.transport".into(),
             reason: format!("SocketCAN ({ifname}) exists only on Linux; use \"slcan:PORT\""),
         })
+    }
+}
+
+/// Which clock simulated devices run on (real devices always run on real time).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SimClock {
+    /// A virtual clock: nothing waits for real, the run is deterministic.
+    #[default]
+    Virtual,
+    /// Real time (e.g. to watch a dry run, or beside outside tools).
+    Real,
+}
+
+/// What the factory hands a session: the devices and the side channel to the rig.
+#[derive(Debug)]
+pub struct OpenedRig {
+    /// The arm and its instrument, each in its safety limits.
+    pub devices: RigDevices,
+    /// What the session tells the rig besides commands: nothing on the real rig.
+    pub hook: Box<dyn RigHook>,
+}
+
+/// The rig's devices for a session: emulators on `scenario`'s world (on `clock`), or what the
+/// rig file's `[devices]` says when there is no scenario (its `sim` entries on a nominal world,
+/// on `clock` when every device is simulated, on real time beside real devices).
+/// The scenario must be for this rig (the caller checks names and instruments).
+pub fn open_rig(
+    rig: &Rig,
+    scenario: Option<&Scenario>,
+    clock: SimClock,
+) -> Result<OpenedRig, DeviceError> {
+    match scenario {
+        Some(s) => {
+            let (mut setup, world) = SimSetup::from_scenario(s);
+            if clock == SimClock::Real {
+                setup.clock = RealClock::shared();
+            }
+            Ok(OpenedRig {
+                devices: open_devices(rig, Backend::Simulated(setup))?,
+                hook: Box::new(WorldHook(world)),
+            })
+        }
+        None => {
+            let cfg = rig.devices.clone().unwrap_or_default();
+            let all_sim = match &rig.instrument {
+                Instrument::TablePanel(_) => {
+                    is_sim(&cfg.arm.transport)
+                        && is_sim(&cfg.table.transport)
+                        && is_sim(&cfg.panel.transport)
+                }
+                Instrument::Ideal | Instrument::Tracker => is_sim(&cfg.arm.transport),
+            };
+            let backend = if all_sim && clock == SimClock::Real {
+                let mut setup = SimSetup::nominal(rig);
+                setup.clock = RealClock::shared();
+                Backend::Simulated(setup)
+            } else {
+                Backend::RigFile
+            };
+            Ok(OpenedRig {
+                devices: open_devices(rig, backend)?,
+                hook: Box::new(NoHook),
+            })
+        }
     }
 }
 

@@ -12,9 +12,9 @@
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::devices::config::PanelConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Panel, PanelStats, Touch};
 use crate::protocols::penmount::PenMountDecoder;
+use crate::rig::devices::PanelConfig;
 use crate::transports::{ByteTransport, TransportError};
 
 /// The PenMount driver over any byte transport.
@@ -52,6 +52,41 @@ impl<T: ByteTransport> PenMountPanel<T> {
     /// Converts raw counts to (u, v) in mm from the panel centre (conventions §8).
     pub fn to_mm(&self, cx: u16, cy: u16) -> (f64, f64) {
         counts_to_mm(cx, cy, self.size, self.counts, &self.cfg)
+    }
+}
+
+impl<T: ByteTransport> PenMountPanel<T> {
+    /// The first touch packet within `timeout` (clock time), `None` if none came.
+    fn touch_within(&mut self, timeout: Duration) -> Result<Option<Touch>, DeviceError> {
+        let deadline = self.clock.now() + timeout;
+        let mut buf = [0u8; 64];
+        loop {
+            let remaining = deadline.saturating_sub(self.clock.now());
+            match self.io.read(&mut buf, remaining) {
+                Ok(n) => {
+                    for p in self.decoder.push(buf.get(..n).unwrap_or(&[])) {
+                        if p.touch {
+                            let (u_mm, v_mm) = self.to_mm(p.x, p.y);
+                            return Ok(Some(Touch {
+                                counts: [p.x, p.y],
+                                u_mm,
+                                v_mm,
+                            }));
+                        }
+                    }
+                }
+                Err(TransportError::Timeout { .. }) => return Ok(None),
+                Err(source) => {
+                    return Err(DeviceError::Transport {
+                        device: DeviceName::Panel,
+                        source,
+                    })
+                }
+            }
+            if self.clock.now() >= deadline {
+                return Ok(None);
+            }
+        }
     }
 }
 
@@ -93,49 +128,20 @@ impl<T: ByteTransport> Panel for PenMountPanel<T> {
 
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
         let start = self.clock.now();
-        let deadline = start + timeout;
-        let mut buf = [0u8; 64];
-        loop {
-            let remaining = deadline.saturating_sub(self.clock.now());
-            match self.io.read(&mut buf, remaining) {
-                Ok(n) => {
-                    for p in self.decoder.push(buf.get(..n).unwrap_or(&[])) {
-                        if p.touch {
-                            let (u_mm, v_mm) = self.to_mm(p.x, p.y);
-                            return Ok(Touch {
-                                counts: [p.x, p.y],
-                                u_mm,
-                                v_mm,
-                            });
-                        }
-                    }
-                }
-                Err(TransportError::Timeout { .. }) => {
-                    return Err(DeviceError::Timeout {
-                        device: DeviceName::Panel,
-                        waiting_for: "a touch packet".into(),
-                        waited: self.clock.now().saturating_sub(start),
-                        target: "touch".into(),
-                        current: format!("{:?}", self.stats()),
-                    })
-                }
-                Err(source) => {
-                    return Err(DeviceError::Transport {
-                        device: DeviceName::Panel,
-                        source,
-                    })
-                }
-            }
-            if self.clock.now() >= deadline {
-                return Err(DeviceError::Timeout {
-                    device: DeviceName::Panel,
-                    waiting_for: "a touch packet".into(),
-                    waited: self.clock.now().saturating_sub(start),
-                    target: "touch".into(),
-                    current: format!("{:?}", self.stats()),
-                });
-            }
+        match self.touch_within(timeout)? {
+            Some(t) => Ok(t),
+            None => Err(DeviceError::Timeout {
+                device: DeviceName::Panel,
+                waiting_for: "a touch packet".into(),
+                waited: self.clock.now().saturating_sub(start),
+                target: "touch".into(),
+                current: format!("{:?}", self.stats()),
+            }),
         }
+    }
+
+    fn poll_touch(&mut self, slice: Duration) -> Result<Option<Touch>, DeviceError> {
+        self.touch_within(slice)
     }
 
     fn stats(&self) -> PanelStats {

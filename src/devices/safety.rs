@@ -63,6 +63,13 @@ impl<A: Arm> Arm for LimitedArm<A> {
         self.check(q)?;
         self.inner.move_to(q, timeout)
     }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.check(q)?;
+        self.inner.start_move(q, timeout)
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.inner.wait_moved(slice)
+    }
     fn commanded(&self) -> Option<Vec<f64>> {
         self.inner.commanded()
     }
@@ -145,6 +152,16 @@ impl<T: Table> Table for LimitedTable<T> {
     }
     fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         self.inner.wait_reached(timeout)
+    }
+    fn poll_reached(
+        &mut self,
+        slice: Duration,
+        left: Duration,
+    ) -> Result<Option<[f64; 3]>, DeviceError> {
+        self.inner.poll_reached(slice, left)
+    }
+    fn supervise(&mut self) -> Result<(), DeviceError> {
+        self.inner.supervise()
     }
     fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         self.inner.position(timeout)

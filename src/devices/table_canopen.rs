@@ -23,12 +23,12 @@
 use std::time::Duration;
 
 use crate::devices::clock::SharedClock;
-use crate::devices::config::TableConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Table};
 use crate::protocols::canopen::{
     next_controlword_towards_enabled, od, CanOpenMessage, Controlword, DriveState, Nmt, NmtCommand,
     NodeId, SdoData, SdoRequest, SdoResponse, Statusword,
 };
+use crate::rig::devices::TableConfig;
 use crate::transports::{CanBus, TransportError};
 
 const AXES: [char; 3] = ['x', 'y', 'z'];
@@ -378,6 +378,52 @@ impl<B: CanBus> CanOpenTable<B> {
     }
 }
 
+impl<B: CanBus> CanOpenTable<B> {
+    /// Polls the drives until every axis has reached its target (the actual position) or
+    /// `within` has passed (`None`); faults end it with their error.
+    fn poll_until(&mut self, within: Duration) -> Result<Option<[f64; 3]>, DeviceError> {
+        let start = self.clock.now();
+        loop {
+            self.check_health()?;
+            let mut all = true;
+            for k in 0..3 {
+                let sw = self.statusword(k)?;
+                if sw.fault() {
+                    self.drain()?;
+                    return Err(self.fault_error(k, sw.0));
+                }
+                if sw.following_error() {
+                    return Err(DeviceError::FollowingError {
+                        axis: AXES[k],
+                        node: self.nodes[k].get(),
+                        target_mm: self.target_mm.map_or(f64::NAN, |t| t[k]),
+                        current_mm: self.last_pos.map(|p| p[k]),
+                    });
+                }
+                all &= sw.target_reached();
+            }
+            if all {
+                return self.read_positions().map(Some);
+            }
+            // The poll interval before the check, so that the slices of a longer wait keep
+            // the same cadence as one wait.
+            self.clock.sleep(self.poll());
+            if self.clock.now().saturating_sub(start) > within {
+                return Ok(None);
+            }
+        }
+    }
+
+    /// The timeout of a wait for the target that began at `start`, with the last position.
+    fn not_reached(&mut self, start: Duration) -> DeviceError {
+        let _ = self.read_positions();
+        self.timeout(
+            "every axis to reach its target (statusword bit 10)".into(),
+            self.clock.now().saturating_sub(start),
+        )
+    }
+}
+
 fn cfg_err(key: &str, e: impl std::fmt::Display) -> DeviceError {
     DeviceError::Config {
         key: key.into(),
@@ -483,38 +529,27 @@ impl<B: CanBus> Table for CanOpenTable<B> {
 
     fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         let start = self.clock.now();
-        loop {
-            self.check_health()?;
-            let mut all = true;
-            for k in 0..3 {
-                let sw = self.statusword(k)?;
-                if sw.fault() {
-                    self.drain()?;
-                    return Err(self.fault_error(k, sw.0));
-                }
-                if sw.following_error() {
-                    return Err(DeviceError::FollowingError {
-                        axis: AXES[k],
-                        node: self.nodes[k].get(),
-                        target_mm: self.target_mm.map_or(f64::NAN, |t| t[k]),
-                        current_mm: self.last_pos.map(|p| p[k]),
-                    });
-                }
-                all &= sw.target_reached();
-            }
-            if all {
-                return self.read_positions();
-            }
-            let waited = self.clock.now().saturating_sub(start);
-            if waited > timeout {
-                let _ = self.read_positions();
-                return Err(self.timeout(
-                    "every axis to reach its target (statusword bit 10)".into(),
-                    waited,
-                ));
-            }
-            self.clock.sleep(self.poll());
+        match self.poll_until(timeout)? {
+            Some(p) => Ok(p),
+            None => Err(self.not_reached(start)),
         }
+    }
+
+    fn poll_reached(
+        &mut self,
+        slice: Duration,
+        left: Duration,
+    ) -> Result<Option<[f64; 3]>, DeviceError> {
+        let start = self.clock.now();
+        match self.poll_until(slice.min(left))? {
+            Some(p) => Ok(Some(p)),
+            None if left <= slice => Err(self.not_reached(start)),
+            None => Ok(None),
+        }
+    }
+
+    fn supervise(&mut self) -> Result<(), DeviceError> {
+        self.check_health()
     }
 
     fn position(&mut self, _timeout: Duration) -> Result<[f64; 3], DeviceError> {

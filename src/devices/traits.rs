@@ -7,6 +7,12 @@
 //! [`DeviceError::Timeout`], which carries what was awaited, the target and the last known state.
 //! Traits are small, synchronous and object-safe; the factory hands them out as `Box<dyn …>`,
 //! and nothing in them tells a simulated device from a real one.
+//!
+//! Long waits also come in slices ([`Arm::start_move`] + [`Arm::wait_moved`],
+//! [`Table::poll_reached`], [`Panel::poll_touch`]), so that the session's
+//! asynchronous choreography can wait on several devices at once and stop waiting when a fault
+//! comes first. The defaults wait in one piece, so a device (or a test wrapper) that only
+//! implements the plain calls still works, unsliced.
 
 use std::time::Duration;
 
@@ -316,6 +322,19 @@ pub trait Arm: Send {
     /// Moves to absolute joint values `q` (rad) and waits until the motion is complete.
     /// Returns the joint values actually commanded (after the controller's resolution).
     fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError>;
+    /// Starts a move to `q` (rad) whose end [`Arm::wait_moved`] awaits, `timeout` counting
+    /// from now; returns the joint values commanded. A move whose wait was abandoned is
+    /// finished (its reply awaited) before the arm takes the next command. Default: the whole
+    /// [`Arm::move_to`].
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.move_to(q, timeout)
+    }
+    /// Waits at most `slice` for the move begun by [`Arm::start_move`] to end: `Ok(true)` once
+    /// it has (checked as [`Arm::move_to`] checks it), `Ok(false)` while it is under way, a
+    /// [`DeviceError::Timeout`] when the move's own timeout has run out. Default: done.
+    fn wait_moved(&mut self, _slice: Duration) -> Result<bool, DeviceError> {
+        Ok(true)
+    }
     /// The joint values last commanded (rad); `None` before homing or after a hardware error.
     fn commanded(&self) -> Option<Vec<f64>>;
     /// Reads the controller's Cartesian pose.
@@ -337,6 +356,23 @@ pub trait Table: Send {
     fn start_move(&mut self, target_mm: [f64; 3], timeout: Duration) -> Result<(), DeviceError>;
     /// Waits until every axis has reached the target; returns the actual position.
     fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
+    /// Waits at most `slice` for every axis to reach its target: the position once they have,
+    /// `None` while they have not and `left` (the rest of the whole wait, `slice` included) is
+    /// not used up, the [`Table::wait_reached`] timeout error when it is. Default: the whole
+    /// `wait_reached(left)`.
+    fn poll_reached(
+        &mut self,
+        _slice: Duration,
+        left: Duration,
+    ) -> Result<Option<[f64; 3]>, DeviceError> {
+        self.wait_reached(left).map(Some)
+    }
+    /// Checks the drives without waiting: reads what the bus already holds and fails on an
+    /// emergency (EMCY) or a heartbeat silent for longer than its limit. The session's
+    /// supervision task calls it once a heartbeat period. Default: nothing to check.
+    fn supervise(&mut self) -> Result<(), DeviceError> {
+        Ok(())
+    }
     /// Reads the actual position (mm).
     fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
     /// Stops every axis where it is; returns the position.
@@ -380,6 +416,15 @@ pub trait Panel: Send {
     fn clear(&mut self) -> Result<(), DeviceError>;
     /// Waits for the first valid packet with the touch flag set.
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError>;
+    /// Waits at most `slice` for a touch (a slice of a longer wait): `None` if none came.
+    /// Default: [`Panel::wait_touch`] with its timeout as `None`.
+    fn poll_touch(&mut self, slice: Duration) -> Result<Option<Touch>, DeviceError> {
+        match self.wait_touch(slice) {
+            Ok(t) => Ok(Some(t)),
+            Err(DeviceError::Timeout { .. }) => Ok(None),
+            Err(e) => Err(e),
+        }
+    }
     /// Stream counters (bad packets are counted and dropped, never measured).
     fn stats(&self) -> PanelStats;
     /// The panel's reporting latency (from the rig file), for the approach-speed rule.
@@ -395,6 +440,12 @@ impl<A: Arm + ?Sized> Arm for Box<A> {
     }
     fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
         (**self).move_to(q, timeout)
+    }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        (**self).start_move(q, timeout)
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        (**self).wait_moved(slice)
     }
     fn commanded(&self) -> Option<Vec<f64>> {
         (**self).commanded()
@@ -423,6 +474,16 @@ impl<T: Table + ?Sized> Table for Box<T> {
     fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         (**self).wait_reached(timeout)
     }
+    fn poll_reached(
+        &mut self,
+        slice: Duration,
+        left: Duration,
+    ) -> Result<Option<[f64; 3]>, DeviceError> {
+        (**self).poll_reached(slice, left)
+    }
+    fn supervise(&mut self) -> Result<(), DeviceError> {
+        (**self).supervise()
+    }
     fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         (**self).position(timeout)
     }
@@ -446,6 +507,9 @@ impl<P: Panel + ?Sized> Panel for Box<P> {
     }
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
         (**self).wait_touch(timeout)
+    }
+    fn poll_touch(&mut self, slice: Duration) -> Result<Option<Touch>, DeviceError> {
+        (**self).poll_touch(slice)
     }
     fn stats(&self) -> PanelStats {
         (**self).stats()

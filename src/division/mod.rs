@@ -18,7 +18,9 @@ mod planner;
 mod space;
 mod tree;
 
-pub use planner::{divide, DivisionError, DivisionOptions, DivisionReport, Measurer, Mode};
+pub use planner::{
+    divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
+};
 pub use space::{Bounds, DivisionSpace, Space};
 pub use tree::{
     expand as tree_expand, forget_region, RegionModel, RegionNode, RegionTest, RegionTree,

@@ -28,9 +28,30 @@ use rand::{RngExt, SeedableRng};
 /// Something that measures the arm: the simulated world or the rig.
 pub trait Measurer {
     /// A measurement with the arm sent to `q`: the joints actually commanded (a controller
-    /// rounds them to its resolution) and the measured point (world, mm); None when the
-    /// measurement failed (no contact, out of reach of the instrument).
-    fn measure(&mut self, q: &[f64]) -> Option<Observation>;
+    /// rounds them to its resolution) and the measured point (world, mm); `Ok(None)` when this
+    /// measurement failed (no contact, out of reach of the instrument) and the division may go
+    /// on without it; `Err` when the measurer cannot go on at all (a rig fault that stopped
+    /// the session): the division stops at once and returns it.
+    fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, MeasureError>;
+}
+
+/// A measurer that cannot go on (e.g. the session's rig stopped on a fault); the cause is kept
+/// as the error's source, so a caller can downcast it to its own type.
+#[derive(Debug, thiserror::Error)]
+#[error("measuring stopped: {source}")]
+pub struct MeasureError {
+    /// The cause (e.g. a [`SessionError`](crate::session::SessionError)).
+    #[source]
+    pub source: Box<dyn std::error::Error + Send + Sync>,
+}
+
+impl MeasureError {
+    /// Wraps the measurer's own error.
+    pub fn new(source: impl std::error::Error + Send + Sync + 'static) -> Self {
+        MeasureError {
+            source: Box::new(source),
+        }
+    }
 }
 
 /// Where the measurements come from.
@@ -96,6 +117,9 @@ pub enum DivisionError {
     /// The division space does not fit the rig.
     #[error(transparent)]
     Space(#[from] SpaceError),
+    /// The measurer stopped (planning mode): the division stopped with it.
+    #[error(transparent)]
+    Measurement(#[from] MeasureError),
     /// The whole workspace could not be identified.
     #[error(
         "the whole workspace could not be identified from {measurements} measurements: {reason}"
@@ -120,6 +144,12 @@ pub struct DivisionReport {
     pub observations: Vec<Observation>,
     /// Test measurements made (planning mode).
     pub test_measurements: usize,
+}
+
+/// Why a region was not split: a reason for its note, or a measurer that stopped.
+enum SplitError {
+    Cannot(String),
+    Measure(MeasureError),
 }
 
 struct Ctx<'a, 'm> {
@@ -175,7 +205,7 @@ pub fn divide(
         note: None,
         children: Vec::new(),
     };
-    ctx.populate(&root.bounds, ctx.opts.per_region.max(3 * basis.len()));
+    ctx.populate(&root.bounds, ctx.opts.per_region.max(3 * basis.len()))?;
     match ctx.identify(&root.bounds, None) {
         Ok((cep, kappa, n)) => {
             root.cep = Some(cep);
@@ -189,7 +219,7 @@ pub fn divide(
             })
         }
     }
-    root.test = ctx.test(&root);
+    root.test = ctx.test(&root)?;
     let mut leaves = 1;
     progress(leaves, opts.max_regions);
     while leaves < opts.max_regions {
@@ -203,7 +233,8 @@ pub fn divide(
                 leaves += 1;
                 progress(leaves, opts.max_regions);
             }
-            Err(reason) => node.note = Some(reason),
+            Err(SplitError::Cannot(reason)) => node.note = Some(reason),
+            Err(SplitError::Measure(e)) => return Err(e.into()),
         }
     }
     for leaf in leaves_mut(&mut root) {
@@ -294,26 +325,29 @@ impl Ctx<'_, '_> {
     }
 
     /// Planning mode: adds measurements in `b` until it holds `target` of them.
-    fn populate(&mut self, b: &Bounds, target: usize) {
-        let Mode::Planning(_) = self.mode else { return };
+    fn populate(&mut self, b: &Bounds, target: usize) -> Result<(), MeasureError> {
+        let Mode::Planning(_) = self.mode else {
+            return Ok(());
+        };
         let existing: Vec<Vec<f64>> = self
             .in_box(b)
             .into_iter()
             .map(|(o, _)| o.q.clone())
             .collect();
         if existing.len() >= target {
-            return;
+            return Ok(());
         }
         let chosen = self.select(b, &existing, target - existing.len());
         let Mode::Planning(m) = &mut self.mode else {
-            return;
+            return Ok(());
         };
         for q in chosen {
-            if let Some(o) = m.measure(&q) {
+            if let Some(o) = m.measure(&q)? {
                 let x = self.space.coords(&o.q);
                 self.data.push((o, x));
             }
         }
+        Ok(())
     }
 
     /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, keep
@@ -436,24 +470,26 @@ impl Ctx<'_, '_> {
 
     /// Tests a region's CEPs: planning mode measures the arm at compensated commands for random
     /// targets in the region; offline mode predicts the held-out points of a fit without them.
-    fn test(&mut self, node: &RegionNode) -> Option<RegionTest> {
-        let cep = node.cep.as_ref()?;
+    fn test(&mut self, node: &RegionNode) -> Result<Option<RegionTest>, MeasureError> {
+        let Some(cep) = node.cep.as_ref() else {
+            return Ok(None);
+        };
         let errors: Vec<f64> = match self.mode {
-            Mode::Planning(_) => self.planning_test(&node.bounds, cep),
+            Mode::Planning(_) => self.planning_test(&node.bounds, cep)?,
             Mode::Offline(_) => self.offline_test(&node.bounds, cep),
         };
         if errors.is_empty() {
-            return None;
+            return Ok(None);
         }
         let n = errors.len();
-        Some(RegionTest {
+        Ok(Some(RegionTest {
             n,
             max_mm: errors.iter().copied().fold(0.0, f64::max),
             rms_mm: (errors.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
-        })
+        }))
     }
 
-    fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
+    fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Result<Vec<f64>, MeasureError> {
         let model = expand(self.basis, self.n_params, cep);
         let nominal = ErrorParams::zeros(self.rig.chain.layout());
         let opts = CompensationOptions::default();
@@ -472,11 +508,11 @@ impl Ctx<'_, '_> {
                 break;
             };
             self.tests_made += 1;
-            if let Some(o) = m.measure(&c.command) {
+            if let Some(o) = m.measure(&c.command)? {
                 errors.push((o.p - target).norm());
             }
         }
-        errors
+        Ok(errors)
     }
 
     fn offline_test(&self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
@@ -498,21 +534,24 @@ impl Ctx<'_, '_> {
     }
 
     /// Splits a region into two halves with their CEPs and tests, or says why it cannot.
-    fn split(&mut self, node: &RegionNode) -> Result<Vec<RegionNode>, String> {
+    fn split(&mut self, node: &RegionNode) -> Result<Vec<RegionNode>, SplitError> {
         let full = self.space.full;
         if node.bounds.min_fraction(&full) * 0.5 < self.opts.min_fraction {
-            return Err(format!(
+            return Err(SplitError::Cannot(format!(
                 "narrower than 1/{:.0} of the workspace",
                 1.0 / self.opts.min_fraction
-            ));
+            )));
         }
         let dim = node.bounds.widest(&full);
         let (a, b) = node.bounds.halves(dim);
         let parent = node.cep.clone();
         let mut children = Vec::new();
         for (k, bounds) in [a, b].into_iter().enumerate() {
-            self.populate(&bounds, self.opts.per_region);
-            let (cep, kappa, n) = self.identify(&bounds, parent.as_deref())?;
+            self.populate(&bounds, self.opts.per_region)
+                .map_err(SplitError::Measure)?;
+            let (cep, kappa, n) = self
+                .identify(&bounds, parent.as_deref())
+                .map_err(SplitError::Cannot)?;
             let mut child = RegionNode {
                 id: format!("{}{k}", node.id),
                 bounds,
@@ -523,7 +562,7 @@ impl Ctx<'_, '_> {
                 note: None,
                 children: Vec::new(),
             };
-            child.test = self.test(&child);
+            child.test = self.test(&child).map_err(SplitError::Measure)?;
             children.push(child);
         }
         Ok(children)

@@ -2,8 +2,9 @@
 //! temporary file, fsync, rename) after each point's last row, so a session killed at any
 //! moment resumes with no point lost or duplicated (conventions §7).
 //!
-//! It holds what the rows alone cannot give back: the session clock, the world's motion history
-//! (backlash and drift depend on it), where the arm and table stand, the registration, and the
+//! It holds what the rows alone cannot give back: the session clock, the rig's opaque state
+//! (a dry run's world keeps its motion history there: backlash and drift depend on it), where
+//! the arm and table stand, the registration, and the
 //! byte length of the CSV at that moment (a resume cuts the CSV back to it, removing a torn line
 //! or the rows of a point that was not finished).
 
@@ -13,7 +14,6 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::recording::RegistrationInfo;
-use crate::world::MotionHistory;
 
 /// The journal's file name in a session directory.
 pub const JOURNAL_FILE: &str = "journal.json";
@@ -51,8 +51,10 @@ pub struct Journal {
     pub next_seq: u64,
     /// Session time (s): the virtual clock of a dry run, or elapsed rig time.
     pub clock_s: f64,
-    /// The simulated world's motion history (dry runs only).
-    pub history: Option<MotionHistory>,
+    /// The rig's state, as its [`RigHook`](crate::devices::RigHook) gave it (a dry run's
+    /// world: its motion history; nothing on the real rig). Opaque to the session.
+    #[serde(alias = "history")]
+    pub rig_state: Option<serde_json::Value>,
     /// The arm's last commanded joints (rad).
     pub arm_q: Option<Vec<f64>>,
     /// The table's last position (mm).
@@ -117,5 +119,26 @@ impl Journal {
             path,
             reason: e.to_string(),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_rig_state_is_opaque_and_an_older_journals_history_still_reads() {
+        let old = r#"{"version":1,"next_point":3,"next_seq":9,"clock_s":12.5,
+            "history":{"moves":4,"t_s":11.0},"arm_q":null,"table_mm":null,
+            "registration":null,"csv_bytes":100,"rows":8,"finished":false}"#;
+        let j: Journal = serde_json::from_str(old).expect("an older journal");
+        assert_eq!(
+            j.rig_state,
+            Some(serde_json::json!({"moves": 4, "t_s": 11.0}))
+        );
+        let text = serde_json::to_string(&j).expect("serialises");
+        assert!(text.contains("\"rig_state\":{"), "{text}");
+        let back: Journal = serde_json::from_str(&text).expect("reads back");
+        assert_eq!(back, j);
     }
 }

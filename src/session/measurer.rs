@@ -4,8 +4,8 @@
 //! Every request becomes a point of region [`DIVISION_REGION`] with the next point number (so
 //! approach directions keep alternating), checked like a planned point: one the rig cannot
 //! measure is written as `skipped: REASON` and reported to the division as failed. A session
-//! error (a fault the session cannot clear) stops the measuring: every later request fails at
-//! once and the error is kept for the caller, which must report it.
+//! error (a fault the session cannot clear) stops the division at once: it is the
+//! [`MeasureError`]'s source, which the division returns to its caller.
 //!
 //! A resumed session ([`SessionMeasurer::resuming`]) first answers the division from its
 //! recording: the division is deterministic, so it asks again for the points an earlier run
@@ -14,7 +14,7 @@
 
 use std::collections::VecDeque;
 
-use crate::division::Measurer;
+use crate::division::{MeasureError, Measurer};
 use crate::identification::Observation;
 use crate::kinematics::Robot;
 use crate::recording::{Recording, Status};
@@ -54,7 +54,6 @@ pub const DIVISION_REGION: &str = "div";
 pub struct SessionMeasurer<'s, 'r> {
     session: &'s mut Session<'r>,
     rig: &'r crate::rig::Rig,
-    error: Option<SessionError>,
     replay: VecDeque<RecordedRequest>,
     replayed: usize,
 }
@@ -75,16 +74,15 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
         SessionMeasurer {
             session,
             rig,
-            error: None,
             replay: recorded.into(),
             replayed: 0,
         }
     }
 
     /// The next recorded answer, if `q` is what was recorded; the divergence as the error
-    /// otherwise. The arm rounds commands to its resolution, so joints within half a step of
-    /// the request are the same request.
-    fn replay(&mut self, q: &[f64]) -> Option<Option<Observation>> {
+    /// otherwise (`None` once the recording is replayed). The arm rounds commands to its
+    /// resolution, so joints within half a step of the request are the same request.
+    fn replay(&mut self, q: &[f64]) -> Option<Result<Option<Observation>, SessionError>> {
         let r = self.replay.pop_front()?;
         self.replayed += 1;
         let half_step = self
@@ -98,7 +96,7 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
                 .zip(q)
                 .all(|(a, b)| (a - b).abs() <= half_step + 1e-9);
         if same {
-            return Some(r.observation);
+            return Some(Ok(r.observation));
         }
         let deg = |v: &[f64]| -> Vec<f64> {
             self.rig
@@ -109,28 +107,20 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
                 .map(|(j, x)| (j.kind.to_file_units(*x) * 1e4).round() / 1e4)
                 .collect()
         };
-        self.error = Some(SessionError::ResumeDiverged {
+        let diverged = SessionError::ResumeDiverged {
             point: self.replayed,
             asked_deg: deg(q),
             recorded_deg: deg(&r.q),
-        });
+        };
         self.replay.clear();
-        Some(None)
-    }
-
-    /// The error that stopped the session, if one did.
-    pub fn into_error(self) -> Option<SessionError> {
-        self.error
+        Some(Err(diverged))
     }
 }
 
 impl Measurer for SessionMeasurer<'_, '_> {
-    fn measure(&mut self, q: &[f64]) -> Option<Observation> {
-        if self.error.is_some() {
-            return None;
-        }
+    fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, MeasureError> {
         if let Some(answer) = self.replay(q) {
-            return answer;
+            return answer.map_err(MeasureError::new);
         }
         let p = PlannedPoint {
             point: self.session.points_done() + 1,
@@ -138,12 +128,8 @@ impl Measurer for SessionMeasurer<'_, '_> {
             q: q.to_vec(),
             table_mm: target_point(self.rig, q),
         };
-        match self.session.measure_point(&p, false) {
-            Ok(measured) => measured,
-            Err(e) => {
-                self.error = Some(e);
-                None
-            }
-        }
+        self.session
+            .measure_point(&p, false)
+            .map_err(MeasureError::new)
     }
 }

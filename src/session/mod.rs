@@ -2,16 +2,27 @@
 //! drivers (on the rig or on emulators of a scenario's world), journal every point so a killed
 //! session resumes without losing or repeating one.
 //!
-//! - [`plan`]: points per region, checked for measurability, ordered to cut travel, with a drift
+//! - [`plan`](mod@plan): points per region, checked for measurability, ordered to cut travel, with a drift
 //!   reference and alternating approach directions; a rig-time estimate.
-//! - [`run`]: registration, then the points; rows appended and flushed before the next motion.
+//! - [`run`]: registration, then the points; rows appended and flushed before the next motion,
+//!   the choreography on tokio (arm and table together, waits raced against the drives'
+//!   supervision, a fault cancelling the motion in progress). Inside: a session core, the
+//!   devices as futures, and one procedure per instrument — table-and-panel contact, or a
+//!   point sensor — each with its thresholds from the rig file.
 //! - [`journal`]: the resume state.
 //! - [`measurer`]: planning mode through the rig: the division asks, the session measures.
 
+mod contact;
+mod core;
 pub mod journal;
 pub mod measurer;
+mod motion;
 pub mod plan;
+mod progress;
+mod recovery;
+mod registration;
 pub mod run;
+mod sensor;
 
 pub use journal::{Journal, JournalError};
 pub use measurer::{recorded_requests, RecordedRequest, SessionMeasurer};
@@ -20,4 +31,6 @@ pub use plan::{
     ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint, RigSpeeds,
     RigTimeEstimate,
 };
-pub use run::{run_session, Progress, Session, SessionError, SessionOptions, SessionReport};
+pub use progress::Progress;
+pub use run::{run_session, Session, SessionError, SessionOptions, SessionReport};
+pub use sensor::SensorSettings;

@@ -23,7 +23,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 
-use crate::devices::emulators::Profile;
+use crate::devices::profile::Profile;
 use crate::division::{Bounds, DivisionSpace, Space};
 use crate::identification::random_poses;
 use crate::kinematics::{ErrorParams, Robot};
@@ -170,7 +170,7 @@ const REGISTRATION_DRAWS_PER_POSE: usize = 500;
 /// uniform random joint values, seeded from the session seed, kept when the rig can measure
 /// them. The session takes candidates until it has its registration observations; the rig-time
 /// estimate takes as many as the session asks for. Ends early when no measurable pose turns up
-/// within [`REGISTRATION_DRAWS_PER_POSE`] draws.
+/// within `REGISTRATION_DRAWS_PER_POSE` draws.
 pub fn registration_candidates(
     rig: &Rig,
     session_seed: u64,
@@ -435,17 +435,38 @@ pub struct ContactSettings {
     /// A touch farther than this from the panel centre is rejected as a bad reading and the
     /// contact repeated (mm; the table stands under the nominal tip).
     pub max_offset_mm: f64,
+    /// The final touch may differ from the locating touch by this much in u and in v (mm);
+    /// more, and the contact is repeated.
+    pub max_disagreement_mm: f64,
+    /// Tolerance of the z checks (mm): a locating touch within it of the approach start means
+    /// the pin was already on the panel; a final touch more than it below the back-off height
+    /// cannot be right.
+    pub z_tolerance_mm: f64,
 }
 
 impl Default for ContactSettings {
     fn default() -> Self {
+        ContactSettings::from_config(&crate::rig::devices::ContactConfig::default())
+    }
+}
+
+impl ContactSettings {
+    /// The rig file's `[devices.contact]` (its defaults when the file has none).
+    pub fn of(rig: &Rig) -> Self {
+        ContactSettings::from_config(&rig.devices.clone().unwrap_or_default().contact)
+    }
+
+    /// From the `[devices.contact]` section.
+    pub fn from_config(c: &crate::rig::devices::ContactConfig) -> Self {
         ContactSettings {
-            margin_mm: 2.5,
-            fast_mm_s: 5.0,
-            backoff_mm: 0.3,
-            via_delta: 0.5f64.to_radians(),
-            clearance_mm: 2.0,
-            max_offset_mm: 10.0,
+            margin_mm: c.margin_mm,
+            fast_mm_s: c.locate_speed_mm_s,
+            backoff_mm: c.backoff_mm,
+            via_delta: c.via_delta_deg.to_radians(),
+            clearance_mm: c.clearance_mm,
+            max_offset_mm: c.max_offset_mm,
+            max_disagreement_mm: c.max_disagreement_mm,
+            z_tolerance_mm: c.z_tolerance_mm,
         }
     }
 }

@@ -3,7 +3,8 @@
 //! - [`ByteTransport`] (byte streams): [`SerialTransport`] over a serial port
 //!   or pseudo-terminal, [`PipeTransport`] in memory.
 //! - [`CanBus`] (CAN frames): [`SlcanBus`] over any byte transport, the
-//!   in-process [`SimBus`], and [`SocketCanBus`] on Linux.
+//!   in-process [`SimBus`], [`SocketCanBus`] on Linux, and [`BridgedCanBus`] over an
+//!   asynchronous socket on tokio ([`AsyncSocketCan`] on Linux).
 //!
 //! Every wait takes a timeout and ends in [`TransportError::Timeout`], which
 //! reports how long was actually waited.
@@ -12,6 +13,7 @@ use std::time::Duration;
 
 use thiserror::Error;
 
+pub mod can_bridge;
 pub mod can_bus;
 pub mod serial;
 pub mod sim_bus;
@@ -19,6 +21,7 @@ pub mod slcan_bus;
 #[cfg(target_os = "linux")]
 pub mod socketcan_bus;
 
+pub use can_bridge::{AsyncFrames, BridgedCanBus};
 pub use can_bus::CanBus;
 pub use serial::{
     ByteTransport, FlowControl, Parity, PipeTransport, SerialSettings, SerialTransport,
@@ -26,7 +29,7 @@ pub use serial::{
 pub use sim_bus::{SimBus, SimBusEndpoint};
 pub use slcan_bus::{SlcanBus, SlcanBusConfig};
 #[cfg(target_os = "linux")]
-pub use socketcan_bus::SocketCanBus;
+pub use socketcan_bus::{AsyncSocketCan, SocketCanBus};
 
 /// Coarse classification of a [`TransportError`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

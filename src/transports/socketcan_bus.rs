@@ -1,9 +1,12 @@
 //! [`CanBus`] over Linux SocketCAN (`can0`, `vcan0`, ...).
 //!
 //! Framing: one kernel `struct can_frame` per frame through a raw CAN socket,
-//! via the `socketcan` crate (v3). Reference: Linux
+//! via the `socketcan` crate (v4). Reference: Linux
 //! `Documentation/networking/can.rst`. Error frames received from the kernel
 //! are reported as [`TransportError::Protocol`].
+//!
+//! Two forms: [`SocketCanBus`], blocking, and [`AsyncSocketCan`], socketcan's tokio socket,
+//! which the rig's table uses behind a [`BridgedCanBus`](super::BridgedCanBus).
 
 use std::time::{Duration, Instant};
 
@@ -74,6 +77,45 @@ fn from_socketcan(frame: &socketcan::CanFrame) -> Result<CanFrame, TransportErro
     built.map_err(|e| TransportError::Protocol {
         detail: format!("invalid frame from SocketCAN: {e}"),
     })
+}
+
+/// A SocketCAN socket on tokio (socketcan's `tokio` feature), for a
+/// [`BridgedCanBus`](super::BridgedCanBus).
+#[derive(Debug)]
+pub struct AsyncSocketCan {
+    socket: socketcan::tokio::CanSocket,
+}
+
+impl AsyncSocketCan {
+    /// Opens the interface `ifname` (it must exist and be up); must be called inside a tokio
+    /// runtime with I/O enabled (the bridge's I/O thread).
+    pub fn open(ifname: &str) -> Result<Self, TransportError> {
+        let socket =
+            socketcan::tokio::CanSocket::open(ifname).map_err(|e| TransportError::Open {
+                target: ifname.to_string(),
+                detail: e.to_string(),
+            })?;
+        Ok(AsyncSocketCan { socket })
+    }
+}
+
+impl super::AsyncFrames for AsyncSocketCan {
+    async fn read(&self) -> Result<CanFrame, TransportError> {
+        let f = self
+            .socket
+            .read_frame()
+            .await
+            .map_err(|source| TransportError::Io { source })?;
+        from_socketcan(&f)
+    }
+
+    async fn write(&self, frame: CanFrame) -> Result<(), TransportError> {
+        let f = to_socketcan(&frame)?;
+        self.socket
+            .write_frame(f)
+            .await
+            .map_err(|source| TransportError::Io { source })
+    }
 }
 
 impl CanBus for SocketCanBus {

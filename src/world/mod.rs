@@ -28,6 +28,7 @@ mod instrument;
 mod paper;
 mod registry;
 mod scenario;
+pub mod simulate;
 mod table;
 mod transmission;
 mod trig_joint;
@@ -44,6 +45,7 @@ pub use instrument::{
 pub use paper::{error_split, fig6_path, ErrorSplit};
 pub use registry::{parse_effect, ParseFn, REGISTRY};
 pub use scenario::{Scenario, ScenarioError};
+pub use simulate::{check_same_rig, random_session_poses, simulate_session, SimulateError};
 pub use table::{RegistrationOffset, TableScale, TableSquareness};
 pub use transmission::{Harmonic, TransmissionError};
 pub use trig_joint::TrigJointErrors;

@@ -14,10 +14,10 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::devices::config::ArmConfig;
 use crate::devices::emulators::{lock, ByteEmulator, SharedPhysics};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::protocols::movemaster::{Command, ErrorStatus, LineFramer, WhereReply};
+use crate::rig::devices::ArmConfig;
 use crate::rig::{Instrument, Rig};
 
 /// Faults to inject and a log of what the controller received.

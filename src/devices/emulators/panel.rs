@@ -14,9 +14,9 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::devices::config::PanelConfig;
 use crate::devices::emulators::{lock, ByteEmulator, SharedPhysics, SharedTable};
 use crate::protocols::penmount::PenMountPacket;
+use crate::rig::devices::PanelConfig;
 use crate::rig::TablePanel;
 
 /// Faults to inject and counters.

@@ -13,19 +13,19 @@
 //! falls, and target reached (bit 10) when the profile ends. Halt (bit 8) stops the axis where
 //! it is. A fault stops the axis, raises bit 3 (and bit 13 for a following error) and sends an
 //! EMCY; a rising edge of bit 7 clears it (to *switch on disabled*) and sends an EMCY "no error".
-//! Positions in counts on the wire; the true motion in mm goes to the shared [`TableTruth`].
+//! Positions in counts on the wire; the true motion in mm goes to the shared [`TableTruth`](super::TableTruth).
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use crate::devices::config::TableConfig;
 use crate::devices::emulators::{lock, FrameEmulator, Profile, SharedTable};
 use crate::protocols::can::CanFrame;
 use crate::protocols::canopen::{
     od, CanOpenMessage, Controlword, DriveState, EmcyErrorCode, Emergency, Heartbeat, NmtCommand,
     NmtState, NodeId, SdoAbortCode, SdoData, SdoRequest, SdoResponse, Statusword,
 };
+use crate::rig::devices::TableConfig;
 
 /// A drive fault to inject.
 #[derive(Debug, Clone, Copy, PartialEq)]

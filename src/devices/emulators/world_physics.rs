@@ -6,7 +6,8 @@
 //! of the measurement the session is about to take ([`WorldPhysics::set_draws`]): draws are a
 //! function of (seed, seq, attempt) only (conventions §7). Times: the emulators' clock plus a
 //! session time offset ([`WorldPhysics::set_time_offset`]), so a resumed session continues the
-//! world's time where the journal left it.
+//! world's time where the journal left it. The session reaches all three only through
+//! [`WorldHook`], the opaque [`RigHook`] the factory hands it.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -14,8 +15,10 @@ use std::time::Duration;
 use nalgebra::Vector3;
 
 use crate::devices::clock::VirtualClock;
+use crate::devices::emulators::lock;
 use crate::devices::emulators::physics::{PinState, PinTimeline, RigPhysics, SharedPhysics};
 use crate::devices::factory::SimSetup;
+use crate::devices::hook::{HookError, RigHook};
 use crate::rig::Instrument;
 use crate::world::{MotionHistory, Scenario, World};
 
@@ -122,5 +125,34 @@ impl SimSetup {
         setup.physics = physics;
         setup.clock = Arc::new(VirtualClock::new());
         (setup, world)
+    }
+}
+
+/// The session's [`RigHook`] on a simulated world: draws, time base and motion history go to
+/// the [`WorldPhysics`] the emulators share.
+#[derive(Debug, Clone)]
+pub struct WorldHook(pub SharedWorld);
+
+impl RigHook for WorldHook {
+    fn before_measurement(&mut self, seq: u64, attempt: u32) {
+        lock(&self.0).set_draws(seq, attempt);
+    }
+
+    fn time_base(&mut self, session_minus_clock_s: f64) {
+        lock(&self.0).set_time_offset(session_minus_clock_s);
+    }
+
+    fn snapshot(&self) -> Option<serde_json::Value> {
+        // A motion history is plain numbers and maps: it always serialises.
+        serde_json::to_value(lock(&self.0).snapshot()).ok()
+    }
+
+    fn restore(&mut self, snapshot: &serde_json::Value) -> Result<(), HookError> {
+        let history: MotionHistory =
+            serde_json::from_value(snapshot.clone()).map_err(|e| HookError {
+                reason: format!("not a simulated world's motion history ({e})"),
+            })?;
+        lock(&self.0).restore(history);
+        Ok(())
     }
 }

@@ -10,7 +10,8 @@
 //!
 //! The poses every table trains and validates on are drawn in [`poses`]; training a scheme and
 //! measuring it is [`runs`]. Choices where the paper is silent are stated in the robots' modules
-//! and in [`Table::notes`]. Everything is deterministic from the seed.
+//! and in [`Table::notes`]. Everything is deterministic from the seed. Which tables to run and
+//! writing them to files is [`selection`].
 
 pub mod learning_curves;
 pub mod poses;
@@ -18,6 +19,7 @@ pub mod random_errors;
 pub mod runs;
 pub mod scara2_schemes;
 pub mod scara3_direct;
+pub mod selection;
 pub mod stewart_platform;
 
 pub use learning_curves::{fig7, Curve, Fig7, FIG7_CHECKPOINTS};
@@ -26,6 +28,10 @@ pub use random_errors::{table7, TABLE7_MAX_HIDDEN};
 pub use runs::{run_scheme, SchemeRun};
 pub use scara2_schemes::{table5, TABLE5_HIDDEN, TABLE5_LM_ITERATIONS};
 pub use scara3_direct::table18;
+pub use selection::{
+    check_figures, reproduced_table, run_fig7, run_table, tables_for, write_fig7, write_table,
+    ReproduceError, REPRODUCED_FIGURES, REPRODUCED_TABLES,
+};
 pub use stewart_platform::table11;
 
 use crate::neural::network::{Method, TrainConfig};

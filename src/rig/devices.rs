@@ -1,5 +1,5 @@
-//! The `[devices]` section of a rig file: how each device is reached and the numbers its driver
-//! and emulator need. Degrees and millimetres, milliseconds for times.
+//! The `[devices]` section of a rig file: how each device is reached and the numbers its driver,
+//! its emulator and the session's procedures need. Degrees and millimetres, milliseconds for times.
 //!
 //! ```toml
 //! [devices.arm]
@@ -16,6 +16,10 @@
 //! [devices.panel]
 //! transport = "sim"
 //! latency_ms = 10
+//! [devices.contact]                 # the session's contact procedure (table and panel)
+//! max_disagreement_mm = 1.0
+//! [devices.sensor]                  # the session's point-sensor procedure
+//! read_timeout_ms = 2000
 //! ```
 
 use serde::{Deserialize, Serialize};
@@ -32,6 +36,71 @@ pub struct DevicesConfig {
     pub table: TableConfig,
     /// The panel.
     pub panel: PanelConfig,
+    /// The session's contact procedure on the table and panel.
+    pub contact: ContactConfig,
+    /// The session's procedure with a point sensor.
+    pub sensor: SensorConfig,
+}
+
+/// `[devices.contact]`: the thresholds of the session's contact procedure (via pose, travel,
+/// locating approach, back-off, final approach). Defaults are the values the session always
+/// used.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ContactConfig {
+    /// The approach starts this far below the nominal contact and ends as far above (mm).
+    pub margin_mm: f64,
+    /// Speed of the first, locating approach (mm/s).
+    pub locate_speed_mm_s: f64,
+    /// How far the table backs off below the located contact before the final approach (mm).
+    pub backoff_mm: f64,
+    /// Joint offset of the pre-approach (via) pose (deg), which sets the approach directions.
+    pub via_delta_deg: f64,
+    /// Before travelling in x-y the table drops this far below both the current and the next
+    /// approach height (mm).
+    pub clearance_mm: f64,
+    /// A touch farther than this from the panel centre is a bad reading (mm).
+    pub max_offset_mm: f64,
+    /// The final touch may differ from the locating touch by this much in u and in v (mm).
+    pub max_disagreement_mm: f64,
+    /// Tolerance of the z checks (mm): a touch within it of the approach start means the pin
+    /// was already on the panel; a final touch more than it below the back-off is wrong.
+    pub z_tolerance_mm: f64,
+}
+
+impl Default for ContactConfig {
+    fn default() -> Self {
+        ContactConfig {
+            margin_mm: 2.5,
+            locate_speed_mm_s: 5.0,
+            backoff_mm: 0.3,
+            via_delta_deg: 0.5,
+            clearance_mm: 2.0,
+            max_offset_mm: 10.0,
+            max_disagreement_mm: 1.0,
+            z_tolerance_mm: 0.01,
+        }
+    }
+}
+
+/// `[devices.sensor]`: the session's procedure with a point sensor (via pose, target, one
+/// reading).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorConfig {
+    /// Joint offset of the pre-approach (via) pose (deg), which sets the approach directions.
+    pub via_delta_deg: f64,
+    /// Timeout of one reading (ms).
+    pub read_timeout_ms: u64,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        SensorConfig {
+            via_delta_deg: 0.5,
+            read_timeout_ms: 2000,
+        }
+    }
 }
 
 /// `[devices.arm]`: the Movemaster controller.
@@ -313,6 +382,22 @@ impl DevicesConfig {
         }
         positive("panel.max_overshoot_mm", p.max_overshoot_mm)?;
         positive("panel.sim_report_ms", p.sim_report_ms)?;
+
+        let c = &self.contact;
+        positive("contact.margin_mm", c.margin_mm)?;
+        positive("contact.locate_speed_mm_s", c.locate_speed_mm_s)?;
+        positive("contact.backoff_mm", c.backoff_mm)?;
+        non_negative("contact.via_delta_deg", c.via_delta_deg)?;
+        non_negative("contact.clearance_mm", c.clearance_mm)?;
+        positive("contact.max_offset_mm", c.max_offset_mm)?;
+        positive("contact.max_disagreement_mm", c.max_disagreement_mm)?;
+        non_negative("contact.z_tolerance_mm", c.z_tolerance_mm)?;
+
+        let s = &self.sensor;
+        non_negative("sensor.via_delta_deg", s.via_delta_deg)?;
+        if s.read_timeout_ms == 0 {
+            return Err(bad("sensor.read_timeout_ms", "must be positive"));
+        }
         Ok(())
     }
 }
@@ -338,6 +423,9 @@ mod tests {
         let mut c = DevicesConfig::default();
         c.arm.sign = vec![1.0, 1.0, 2.0, 1.0, 1.0];
         assert_eq!(c.validate().unwrap_err().0, "arm.sign");
+        let mut c = DevicesConfig::default();
+        c.contact.max_disagreement_mm = 0.0;
+        assert_eq!(c.validate().unwrap_err().0, "contact.max_disagreement_mm");
     }
 
     #[test]

@@ -22,6 +22,11 @@
 //! [instrument]
 //! kind = "ideal"                             # "table_panel" or "tracker"
 //! ```
+//!
+//! The `[devices]` section (how each device is reached, and the numbers its driver, emulator
+//! and the session's procedures need) is [`devices::DevicesConfig`].
+
+pub mod devices;
 
 use crate::kinematics::{JointKind, JointSpec, LinkParams, ParamId, SerialChain, Transform};
 use nalgebra::{Isometry3, Matrix3, Rotation3, Translation3, UnitQuaternion, Vector3};
@@ -177,7 +182,7 @@ pub struct Rig {
     /// when the rig file states them.
     pub spherical_bounds: Option<[[f64; 2]; 3]>,
     /// How the devices are reached (`[devices]`), when the rig file says.
-    pub devices: Option<crate::devices::DevicesConfig>,
+    pub devices: Option<crate::rig::devices::DevicesConfig>,
     /// The file it came from.
     pub source: RigSource,
     /// Per joint, the mass of the link it moves and its centre of mass, when the rig file
@@ -211,7 +216,7 @@ struct RawRig {
     #[serde(default)]
     workspace: RawWorkspace,
     #[serde(default)]
-    devices: Option<crate::devices::DevicesConfig>,
+    devices: Option<crate::rig::devices::DevicesConfig>,
 }
 
 #[derive(Debug, Deserialize, Default)]
