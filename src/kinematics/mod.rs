@@ -58,7 +58,7 @@ pub use chain::{
 };
 pub use compiled::{joint_trig, ChainAt};
 pub use held::HeldChain;
-pub use ik::{solve_position_ik, IkError, IkOptions};
+pub use ik::{solve_position_ik, solve_position_ik_at, IkError, IkOptions};
 pub use params::{ErrorModel, ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
 pub use pose::{
     difference, newton_inverse, newton_solve, numeric_pose_jacobian, wrap, JacobianFn,
