@@ -115,28 +115,34 @@ fn compensation(c: &mut Criterion) {
             rig.chain.position(&q, &zero)
         })
         .collect();
-    g.bench_function("1000 path targets, compensator, warm (seeded by the last)", |b| {
-        b.iter(|| {
-            let mut fast = Compensator::new(&rig.chain, &model, &opts);
-            let mut seed: Option<Vec<f64>> = None;
-            for t in &path {
-                let c = fast
-                    .compensate(t, rig.held(), seed.as_deref())
-                    .expect("compensate");
-                seed = Some(c.command);
-            }
-        })
-    });
-    g.bench_function("1000 path targets, one at a time, warm (seeded by the last)", |b| {
-        b.iter(|| {
-            let mut seed: Option<Vec<f64>> = None;
-            for t in &path {
-                let c = compensate(&rig.chain, &model, t, rig.held(), seed.as_deref(), &opts)
-                    .expect("compensate");
-                seed = Some(c.command);
-            }
-        })
-    });
+    g.bench_function(
+        "1000 path targets, compensator, warm (seeded by the last)",
+        |b| {
+            b.iter(|| {
+                let mut fast = Compensator::new(&rig.chain, &model, &opts);
+                let mut seed: Option<Vec<f64>> = None;
+                for t in &path {
+                    let c = fast
+                        .compensate(t, rig.held(), seed.as_deref())
+                        .expect("compensate");
+                    seed = Some(c.command);
+                }
+            })
+        },
+    );
+    g.bench_function(
+        "1000 path targets, one at a time, warm (seeded by the last)",
+        |b| {
+            b.iter(|| {
+                let mut seed: Option<Vec<f64>> = None;
+                for t in &path {
+                    let c = compensate(&rig.chain, &model, t, rig.held(), seed.as_deref(), &opts)
+                        .expect("compensate");
+                    seed = Some(c.command);
+                }
+            })
+        },
+    );
     g.finish();
 }
 

@@ -25,8 +25,11 @@ python3 -c "import pybotics" 2>/dev/null || {
     echo "pybotics is not installed: pip install pybotics" >&2
     exit 1
 }
-cargo build --release --quiet --bin rigcal
-RIGCAL=target/release/rigcal
+# RIGCAL=path/to/rigcal skips the build (a binary already built, say with --all-targets).
+if [ -z "${RIGCAL:-}" ]; then
+    cargo build --release --quiet --bin rigcal
+    RIGCAL=target/release/rigcal
+fi
 RIG=rigs/rv-m2-ideal.toml
 
 "$RIGCAL" simulate --rig "$RIG" --scenario sim/paper-sim-noise.toml --random "$N" \

@@ -202,7 +202,11 @@ pub struct Compensator<'a> {
 
 impl<'a> Compensator<'a> {
     /// A compensator for `robot` corrected by `model`.
-    pub fn new(robot: &'a dyn Robot, model: &'a dyn ErrorModel, opts: &CompensationOptions) -> Self {
+    pub fn new(
+        robot: &'a dyn Robot,
+        model: &'a dyn ErrorModel,
+        opts: &CompensationOptions,
+    ) -> Self {
         let nominal_params = ErrorParams::zeros(robot.layout());
         let nominal = robot.as_serial_chain().map(|c| c.at(&nominal_params));
         Self {

@@ -111,13 +111,22 @@ fn joint_targets_and_paths_match_the_one_target_functions() {
     let mut previous: Option<Vec<f64>> = None;
     for ((_, t), c) in targets.iter().zip(&path) {
         let slow = match t {
-            Target::Position(p) => {
-                compensate(&rig.chain, &model, p, rig.held(), previous.as_deref(), &opts)
-            }
+            Target::Position(p) => compensate(
+                &rig.chain,
+                &model,
+                p,
+                rig.held(),
+                previous.as_deref(),
+                &opts,
+            ),
             Target::Joints(q) => {
                 let p = rig.chain.position(q, &nominal);
-                let held: Vec<Option<f64>> =
-                    rig.held().iter().zip(q).map(|(h, v)| h.map(|_| *v)).collect();
+                let held: Vec<Option<f64>> = rig
+                    .held()
+                    .iter()
+                    .zip(q)
+                    .map(|(h, v)| h.map(|_| *v))
+                    .collect();
                 compensate_from(&rig.chain, &model, &p, &held, q.clone(), &opts)
             }
         };

@@ -242,7 +242,12 @@ fn identify_with_outliers_equals_refitting_from_scratch() {
         assert!(close(a.sigmas, b.sigmas, 1e-6, 0.0));
         // Far tails: compare log p (its relative error grows with the test statistic).
         let (la, lb) = (a.p_value.max(1e-300).ln(), b.p_value.max(1e-300).ln());
-        assert!(close(la, lb, 1e-5, 1e-6), "p {:e} vs {:e}", a.p_value, b.p_value);
+        assert!(
+            close(la, lb, 1e-5, 1e-6),
+            "p {:e} vs {:e}",
+            a.p_value,
+            b.p_value
+        );
     }
     assert_fits_equal(&fast.fit, &slow, "after the outlier search");
 }

@@ -83,7 +83,9 @@ pub(crate) fn gram(a: &DMatrix<f64>) -> DMatrix<f64> {
 pub(crate) fn transpose_times(a: &DMatrix<f64>, x: &DVector<f64>) -> DVector<f64> {
     let m = a.nrows();
     let data = a.as_slice();
-    DVector::from_fn(a.ncols(), |i, _| dot(&data[i * m..(i + 1) * m], x.as_slice()))
+    DVector::from_fn(a.ncols(), |i, _| {
+        dot(&data[i * m..(i + 1) * m], x.as_slice())
+    })
 }
 
 #[cfg(test)]
@@ -92,7 +94,9 @@ mod tests {
 
     #[test]
     fn gram_and_transpose_times_equal_the_products() {
-        let a = DMatrix::from_fn(103, 5, |r, c| ((r * 7 + c * 3) % 11) as f64 - 4.5 + c as f64);
+        let a = DMatrix::from_fn(103, 5, |r, c| {
+            ((r * 7 + c * 3) % 11) as f64 - 4.5 + c as f64
+        });
         let x = DVector::from_fn(103, |r, _| (r as f64 * 0.1).sin());
         assert!((gram(&a) - a.transpose() * &a).norm() < 1e-10);
         assert!((transpose_times(&a, &x) - a.transpose() * &x).norm() < 1e-12);

@@ -60,12 +60,7 @@ impl<'a> GeometricRefits<'a> {
         let nominal = ErrorParams::zeros(rig.chain.layout());
         let factors = incremental.then(|| {
             let poses: Vec<Vec<f64>> = obs.iter().map(|o| o.q.clone()).collect();
-            BlockFactors::new(stacked_jacobian(
-                &rig.chain,
-                &nominal,
-                &poses,
-                &candidates,
-            ))
+            BlockFactors::new(stacked_jacobian(&rig.chain, &nominal, &poses, &candidates))
         });
         let nominal_errors = if incremental {
             super::errors(&rig.chain, obs, &nominal)
