@@ -1,12 +1,13 @@
 //! Benchmarks of the calibration pipeline: identification from 2200 measurements (the paper's
 //! data set size) — the fit alone and `identify` end to end (analysis, fit, outlier search) —
-//! compensation throughput and the variable D-H pipeline as a library call. Run with
-//! `cargo bench --bench pipeline`.
+//! `diagnose` on 600 rows, compensation throughput (one target at a time as before, and the
+//! [`Compensator`] cold and warm along a path) and the variable D-H pipeline as a library call.
+//! Run with `cargo bench --bench pipeline`.
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::compensation::{compensate, CompensationOptions};
+use rigcal::compensation::{compensate, CompensationOptions, Compensator};
 use rigcal::identification::{
     analyse, candidate_order, fit, identify, random_poses, FitOptions, IdentifyOptions, Level,
     Observation,
@@ -96,6 +97,66 @@ fn compensation(c: &mut Criterion) {
             )
         },
     );
+    g.bench_function("1000 random targets, compensator, cold start", |b| {
+        b.iter(|| {
+            let mut fast = Compensator::new(&rig.chain, &model, &opts);
+            for t in &targets {
+                fast.compensate(t, rig.held(), None).expect("compensate");
+            }
+        })
+    });
+    // A path: consecutive targets a few millimetres apart, each seeded with the last command.
+    let start = random_poses(rig.chain.joints(), rig.held(), 1, &mut rng).remove(0);
+    let path: Vec<_> = (0..1000)
+        .map(|k| {
+            let mut q = start.clone();
+            q[0] += 0.001 * k as f64 * if q[0] > 0.0 { -1.0 } else { 1.0 };
+            q[1] += 0.3 * (k as f64 * 0.01).sin() * 0.1;
+            rig.chain.position(&q, &zero)
+        })
+        .collect();
+    g.bench_function(
+        "1000 path targets, compensator, warm (seeded by the last)",
+        |b| {
+            b.iter(|| {
+                let mut fast = Compensator::new(&rig.chain, &model, &opts);
+                let mut seed: Option<Vec<f64>> = None;
+                for t in &path {
+                    let c = fast
+                        .compensate(t, rig.held(), seed.as_deref())
+                        .expect("compensate");
+                    seed = Some(c.command);
+                }
+            })
+        },
+    );
+    g.bench_function(
+        "1000 path targets, one at a time, warm (seeded by the last)",
+        |b| {
+            b.iter(|| {
+                let mut seed: Option<Vec<f64>> = None;
+                for t in &path {
+                    let c = compensate(&rig.chain, &model, t, rig.held(), seed.as_deref(), &opts)
+                        .expect("compensate");
+                    seed = Some(c.command);
+                }
+            })
+        },
+    );
+    g.finish();
+}
+
+fn diagnosis(c: &mut Criterion) {
+    use rigcal::diagnosis::{diagnose, Options};
+    let (rig, world, _) = setup();
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let poses = random_poses(rig.chain.joints(), rig.held(), 600, &mut rng);
+    let rec = world.record(&poses, 1);
+    let mut g = c.benchmark_group("diagnosis");
+    g.sample_size(10);
+    g.bench_function("diagnose 600 rows", |b| {
+        b.iter(|| diagnose(&rig, &rec, &Options { heldout: vec![] }).expect("diagnose"))
+    });
     g.finish();
 }
 
@@ -146,5 +207,11 @@ fn variable_model(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, identification, compensation, variable_model);
+criterion_group!(
+    benches,
+    identification,
+    compensation,
+    diagnosis,
+    variable_model
+);
 criterion_main!(benches);

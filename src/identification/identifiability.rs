@@ -10,9 +10,10 @@
 //!
 //! κ is eq. (4): κ([M]) = ‖MᵀM‖·‖(MᵀM)⁻¹‖ = (σ_max/σ_min)² of the scaled basis columns.
 
+use super::fit::Kinematics;
 use crate::kinematics::{ErrorParams, ParamId, ParamLayout, Robot, TransformId};
 use crate::rig::{FrameMode, Rig};
-use nalgebra::{DMatrix, DVector};
+use nalgebra::{DMatrix, DVector, Vector3};
 
 /// Singular values below this fraction of the largest count as zero.
 pub const RANK_TOL: f64 = 1e-9;
@@ -80,13 +81,13 @@ pub fn stacked_jacobian(
     poses: &[Vec<f64>],
     columns: &[usize],
 ) -> DMatrix<f64> {
+    let k = Kinematics::at(robot, e);
     let mut m = DMatrix::zeros(3 * poses.len(), columns.len());
-    for (k, q) in poses.iter().enumerate() {
-        let (_, j) = robot.position_and_param_jacobian(q, e);
-        for (c, &col) in columns.iter().enumerate() {
-            for r in 0..3 {
-                m[(3 * k + r, c)] = j[(r, col)];
-            }
+    let mut cols = vec![Vector3::zeros(); columns.len()];
+    for (row, q) in poses.iter().enumerate() {
+        k.position_and_columns(q, columns, &mut cols);
+        for (c, col) in cols.iter().enumerate() {
+            m.fixed_view_mut::<3, 1>(3 * row, c).copy_from(col);
         }
     }
     m
@@ -96,8 +97,31 @@ pub fn stacked_jacobian(
 pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> Identifiability {
     let e = ErrorParams::zeros(robot.layout());
     let m = stacked_jacobian(robot, &e, poses, candidates);
+    analyse_factor(&triangular_factor(m), poses.len(), candidates)
+}
+
+/// [`analyse`] on [M] already stacked at the nominal parameters (3 rows per pose, one column
+/// per candidate, in priority order).
+///
+/// Every decision depends on [M] only through the inner products of its columns, so it is
+/// taken on the triangular factor R of [M] = Q·R (Householder, backward stable column by
+/// column like the SVD of [M], so the column scaling may follow it): the singular values, the
+/// Gram–Schmidt residuals and the least-squares combinations of R equal those of [M] up to
+/// rounding, at a fraction of the cost.
+pub fn analyse_jacobian(m: &DMatrix<f64>, candidates: &[usize]) -> Identifiability {
+    analyse_factor(&triangular_factor(m.clone()), m.nrows() / 3, candidates)
+}
+
+/// [`analyse_jacobian`] from any matrix R with RᵀR = [M]ᵀ[M] (its triangular factor, say), [M]
+/// stacked over `poses` poses.
+pub(crate) fn analyse_factor(
+    r: &DMatrix<f64>,
+    poses: usize,
+    candidates: &[usize],
+) -> Identifiability {
+    let m = r;
     let norms: Vec<f64> = (0..m.ncols()).map(|c| m.column(c).norm()).collect();
-    let scale = (3 * poses.len()) as f64;
+    let scale = (3 * poses) as f64;
     let mut no_effect = Vec::new();
     let mut effective = Vec::new();
     for (c, &n) in norms.iter().enumerate() {
@@ -107,12 +131,11 @@ pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> I
             effective.push(c);
         }
     }
-    let scaled = DMatrix::from_fn(m.nrows(), effective.len(), |r, k| {
-        m[(r, effective[k])] / norms[effective[k]]
+    let r = DMatrix::from_fn(m.nrows(), effective.len(), |row, k| {
+        m[(row, effective[k])] / norms[effective[k]]
     });
-    let mut singular_values: Vec<f64> = if scaled.ncols() > 0 {
-        scaled
-            .clone()
+    let mut singular_values: Vec<f64> = if r.ncols() > 0 {
+        r.clone()
             .svd(false, false)
             .singular_values
             .iter()
@@ -133,7 +156,7 @@ pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> I
     let mut q_basis: Vec<DVector<f64>> = Vec::new();
     let mut chosen: Vec<usize> = Vec::new();
     for k in 0..effective.len() {
-        let mut v = scaled.column(k).clone_owned();
+        let mut v = r.column(k).clone_owned();
         for _ in 0..2 {
             for b in &q_basis {
                 let d = b.dot(&v);
@@ -148,8 +171,12 @@ pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> I
     }
     let basis: Vec<usize> = chosen.iter().map(|&k| candidates[effective[k]]).collect();
 
+    // R's columns in parameter units: the coordinates of [M]'s columns in Q.
     let b_cols: Vec<usize> = chosen.iter().map(|&k| effective[k]).collect();
-    let mb = DMatrix::from_fn(m.nrows(), b_cols.len(), |r, c| m[(r, b_cols[c])]);
+    let unscaled = |k: usize| r.column(k) * norms[effective[k]];
+    let mb = DMatrix::from_fn(r.nrows(), chosen.len(), |row, c| {
+        r[(row, chosen[c])] * norms[b_cols[c]]
+    });
     let kappa = kappa_eq4(&mb);
     let svd_b = mb.clone().svd(true, true);
     let mut confounded = Vec::new();
@@ -157,7 +184,7 @@ pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> I
         if chosen.contains(&k) {
             continue;
         }
-        let col = m.column(effective[k]).clone_owned();
+        let col = unscaled(k);
         let coef = svd_b
             .solve(&col, 1e-12)
             .unwrap_or_else(|_| DVector::zeros(b_cols.len()));
@@ -176,8 +203,17 @@ pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> I
         confounded,
         kappa,
         singular_values,
-        poses: poses.len(),
+        poses,
     }
+}
+
+/// The triangular factor R of a tall matrix (the matrix itself when it is not taller than
+/// wide): RᵀR = AᵀA, so R has A's singular values and column inner products.
+pub(crate) fn triangular_factor(a: DMatrix<f64>) -> DMatrix<f64> {
+    if a.nrows() <= a.ncols() || a.ncols() == 0 {
+        return a;
+    }
+    super::dense::householder_r(a)
 }
 
 /// κ of eq. (4) for a matrix: (σ_max/σ_min)² after scaling each column to unit norm.
@@ -185,15 +221,16 @@ pub fn kappa_eq4(m: &DMatrix<f64>) -> f64 {
     if m.ncols() == 0 {
         return 1.0;
     }
-    let scaled = DMatrix::from_fn(m.nrows(), m.ncols(), |r, c| {
-        let n = m.column(c).norm();
+    let mut scaled = m.clone();
+    for mut col in scaled.column_iter_mut() {
+        let n = col.norm();
         if n > 0.0 {
-            m[(r, c)] / n
+            col /= n;
         } else {
-            0.0
+            col.fill(0.0);
         }
-    });
-    let sv = scaled.svd(false, false).singular_values;
+    }
+    let sv = triangular_factor(scaled).svd(false, false).singular_values;
     let smax = sv.max();
     let smin = sv.min();
     if smin <= 0.0 {

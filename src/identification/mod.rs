@@ -6,6 +6,8 @@
 //!   basis, then the rest), κ of eq. (4) reported on column-scaled [M].
 //! * [`fit`]: Levenberg–Marquardt with column scaling on the chosen parameters, with each
 //!   parameter's standard deviation and residual statistics.
+//! * [`incremental`]: refits without some rows (the outlier search's), starting from the last
+//!   fit with the removed rows downdated out of its normal equations.
 //! * [`outliers`]: robust detection and removal of measurements no model explains, each named
 //!   with its row and size.
 //! * [`registration`]: the rigid measurement frame (table to world), closed form then refined by
@@ -17,9 +19,11 @@
 //!
 //! Units: mm and rad inside.
 
+mod dense;
 pub mod fit;
 pub mod geometric;
 pub mod identifiability;
+pub mod incremental;
 pub mod outliers;
 pub mod pipeline;
 pub mod registration;

@@ -1,6 +1,7 @@
 //! Conventional calibration of a recording, end to end: the geometric fit at a level
 //! ([`super::geometric`]), robust outlier removal that refits after each removal
-//! ([`super::outliers`]), and the fitted model's error on held-out recordings.
+//! ([`super::outliers`], each refit starting from the last: [`super::incremental`]), and the
+//! fitted model's error on held-out recordings.
 //!
 //! Outliers are judged against the structure of the recording, not only against the geometry:
 //! when the geometric judgement flags rows, they are judged again against the model the
@@ -11,6 +12,7 @@
 //! model file written from them stands alone.
 
 use super::geometric::{fit_geometry, Level};
+use super::incremental::GeometricRefits;
 use super::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
 use super::{errors, FitError, FitResult, ResidualStats};
 use crate::kinematics::{Robot, SerialChain, TransformId};
@@ -176,8 +178,9 @@ enum Probe {
     Flagged,
 }
 
-/// Outliers judged against the geometric fit at `level`, each removal refitting without the row;
-/// with `stop_at_first` the search ends at the first row that fails.
+/// Outliers judged against the geometric fit at `level`, each removal refitting without the row
+/// (from the last fit, the removed rows downdated: [`GeometricRefits`]); with `stop_at_first`
+/// the search ends at the first row that fails.
 fn geometric_search(
     rig: &Rig,
     rec: &Recording,
@@ -187,14 +190,14 @@ fn geometric_search(
 ) -> Result<Searched, IdentifyError> {
     let obs = rec.observations();
     let ids = measured_ids(rec);
+    let mut refits = GeometricRefits::new(rig, &obs, level);
     let mut last = None;
     let search = remove_outliers(&ids, settings, |kept| {
         if stop_at_first && kept.len() < obs.len() {
             return Err(Probe::Flagged);
         }
         // The removed rows stay in the recording (joints, order), they are only not fitted.
-        let fitted: Vec<Observation> = kept.iter().map(|&i| obs[i].clone()).collect();
-        let (chain, result) = identify_at(rig, &fitted, level).map_err(Probe::Fit)?;
+        let (chain, result) = refits.fit(kept).map_err(Probe::Fit)?;
         let residuals = errors(&chain, &obs, &result.params);
         let p = result.free.len();
         last = Some((chain, result));
@@ -247,8 +250,8 @@ fn judge_against_structure(
     Ok((chain, result, outliers, warning))
 }
 
-/// The whole geometric judgement: rows removed one at a time with a refit, or nothing removed
-/// and a warning when more than the cap fail.
+/// The geometric judgement alone: outliers against the geometric fit, each removal refitting
+/// from the last fit without the row.
 fn geometric_only(
     rig: &Rig,
     rec: &Recording,
@@ -257,25 +260,33 @@ fn geometric_only(
 ) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
     let obs = rec.observations();
     let ids = measured_ids(rec);
+    let mut refits = GeometricRefits::new(rig, &obs, level);
+    let mut first = None;
     let mut last = None;
     let search = remove_outliers(&ids, settings, |kept| {
-        let fitted: Vec<Observation> = kept.iter().map(|&i| obs[i].clone()).collect();
-        let (chain, result) = identify_at(rig, &fitted, level)?;
+        let (chain, result) = refits.fit(kept)?;
         let residuals = errors(&chain, &obs, &result.params);
         let p = result.free.len();
+        if first.is_none() {
+            first = Some((chain.clone(), result.clone()));
+        }
         last = Some((chain, result));
         Ok::<_, IdentifyError>((residuals, p))
     });
+    let all_rows = |first: Option<(SerialChain, FitResult)>| match first {
+        Some(fitted) => Ok(fitted),
+        None => identify_at(rig, &obs, level),
+    };
     match search {
         Ok((outliers, _)) => {
             let (chain, result) = match last {
                 Some(fitted) => fitted,
-                None => identify_at(rig, &obs, level)?,
+                None => all_rows(first)?,
             };
             Ok((chain, result, outliers, None))
         }
         Err(e @ OutlierError::TooMany { .. }) => {
-            let (chain, result) = identify_at(rig, &obs, level)?;
+            let (chain, result) = all_rows(first)?;
             Ok((chain, result, Vec::new(), Some(e.to_string())))
         }
         Err(OutlierError::Fit(e)) => Err(e),

@@ -2,6 +2,7 @@
 //! seen through a measurement frame and ending at a marker point. See the module docs of
 //! [`crate::kinematics`] for the convention.
 
+use super::compiled::Rt;
 use super::params::{ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
 use super::pose::{newton_inverse, KinematicsError, NEWTON_ITERATIONS, NEWTON_TOLERANCE};
 use super::{solve_position_ik, IkOptions, Robot};
@@ -102,19 +103,22 @@ pub enum Transform {
     Pose(FixedPose),
 }
 
+/// An elementary motion about or along local axis k (0 = x, 1 = y, 2 = z).
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Motion {
+pub(super) enum Motion {
     Rot(usize),
     Trans(usize),
 }
 
+/// One elementary motion of the chain, carrying error parameter `param` (its layout index,
+/// which is also its position in the element list).
 #[derive(Debug, Clone)]
-struct Elem {
-    prefix: Option<Isometry3<f64>>,
-    motion: Motion,
-    nominal: f64,
-    param: usize,
-    joint: Option<usize>,
+pub(super) struct Elem {
+    pub(super) prefix: Option<Isometry3<f64>>,
+    pub(super) motion: Motion,
+    pub(super) nominal: f64,
+    pub(super) param: usize,
+    pub(super) joint: Option<usize>,
 }
 
 /// World-frame axis and origin of every elementary motion, and the measured point.
@@ -257,6 +261,11 @@ impl SerialChain {
         }
     }
 
+    /// The elementary motions in chain order (element i carries layout parameter i).
+    pub(super) fn elems(&self) -> &[Elem] {
+        &self.elems
+    }
+
     /// The nominal measurement frame.
     pub fn frame(&self) -> &Isometry3<f64> {
         &self.frame
@@ -354,21 +363,25 @@ impl SerialChain {
 
     fn walk(&self, q: &[f64], e: &ErrorParams, need_axes: bool) -> Walk {
         debug_assert_eq!(q.len(), self.joints.len());
-        let mut t = Isometry3::identity();
+        let mut t = Rt::IDENTITY;
         let mut axes = Vec::with_capacity(if need_axes { self.elems.len() } else { 0 });
         for el in &self.elems {
-            t = self.apply(t, el, q, e);
+            if let Some(p) = &el.prefix {
+                t = t.then(&Rt::from_isometry(p));
+            }
+            let mut v = el.nominal + e.get(el.param);
+            if let Some(j) = el.joint {
+                v += q[j];
+            }
+            t.apply_motion(el.motion, v);
             if need_axes {
-                let u = match el.motion {
-                    Motion::Rot(k) | Motion::Trans(k) => unit(k),
+                let k = match el.motion {
+                    Motion::Rot(k) | Motion::Trans(k) => k,
                 };
-                axes.push((t.rotation * u, t.translation.vector));
+                axes.push((t.r.column(k).into_owned(), t.t));
             }
         }
-        Walk {
-            axes,
-            point: t.translation.vector,
-        }
+        Walk { axes, point: t.t }
     }
 
     fn column(
@@ -388,6 +401,10 @@ impl SerialChain {
 impl Robot for SerialChain {
     fn joints(&self) -> &[JointSpec] {
         &self.joints
+    }
+
+    fn as_serial_chain(&self) -> Option<&SerialChain> {
+        Some(self)
     }
 
     /// A local Newton step from the guess first (it keeps the branch), then the global search

@@ -45,6 +45,7 @@
 //! moves it by u.
 
 mod chain;
+mod compiled;
 mod held;
 mod ik;
 mod params;
@@ -55,8 +56,9 @@ pub mod urdf;
 pub use chain::{
     five_par_transform, FixedPose, JointKind, JointSpec, LinkParams, SerialChain, Transform,
 };
+pub use compiled::{joint_trig, ChainAt};
 pub use held::HeldChain;
-pub use ik::{solve_position_ik, IkError, IkOptions};
+pub use ik::{solve_position_ik, solve_position_ik_at, IkError, IkOptions};
 pub use params::{ErrorModel, ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
 pub use pose::{
     difference, newton_inverse, newton_solve, numeric_pose_jacobian, wrap, JacobianFn,
@@ -134,6 +136,12 @@ pub trait Robot: Send + Sync {
 
     /// The 3 × N derivative of the measured point with respect to the joint values.
     fn joint_jacobian(&self, q: &[f64], e: &ErrorParams) -> DMatrix<f64>;
+
+    /// This robot as a serial chain with the same joints, when it is one: identification and
+    /// compensation then take the chain's allocation-free evaluation ([`SerialChain::at`]).
+    fn as_serial_chain(&self) -> Option<&SerialChain> {
+        None
+    }
 }
 
 /// The layout of a robot that carries no error parameters.

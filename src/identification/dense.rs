@@ -1,0 +1,139 @@
+//! Small dense kernels on column-major storage for identification's tall matrices (thousands
+//! of rows, tens of columns): the Householder triangular factor and the Gram matrix, written
+//! as contiguous dot products and updates so the compiler vectorises them.
+
+use nalgebra::{DMatrix, DVector};
+
+/// R of A = Q·R by Householder reflections, on A's column-major storage (m ≥ n): each
+/// reflection is a dot product and an update of contiguous column tails. A row of R may have
+/// either sign, which leaves RᵀR unchanged.
+pub(crate) fn householder_r(mut a: DMatrix<f64>) -> DMatrix<f64> {
+    let (m, n) = a.shape();
+    let mut diagonal = vec![0.0; n];
+    let data = a.as_mut_slice();
+    for k in 0..n {
+        let (done, rest) = data.split_at_mut((k + 1) * m);
+        let v = &mut done[k * m + k..];
+        let norm = dot(v, v).sqrt();
+        if norm == 0.0 {
+            continue;
+        }
+        // v = x − α·e₁ with α of the sign opposite x₀ (no cancellation); vᵀv = 2‖x‖(‖x‖ + |x₀|).
+        let x0 = v[0];
+        let alpha = if x0 > 0.0 { -norm } else { norm };
+        v[0] = x0 - alpha;
+        let vtv = 2.0 * norm * (norm + x0.abs());
+        diagonal[k] = alpha;
+        for j in 0..n - k - 1 {
+            let c = &mut rest[j * m + k..(j + 1) * m];
+            let w = 2.0 * dot(v, c) / vtv;
+            axpy(-w, v, c);
+        }
+    }
+    DMatrix::from_fn(n, n, |i, j| match i.cmp(&j) {
+        std::cmp::Ordering::Less => a[(i, j)],
+        std::cmp::Ordering::Equal => diagonal[i],
+        std::cmp::Ordering::Greater => 0.0,
+    })
+}
+
+/// xᵀy with four partial sums (so the compiler can use vector registers).
+pub(crate) fn dot(x: &[f64], y: &[f64]) -> f64 {
+    let mut acc = [0.0; 4];
+    let (xc, yc) = (x.chunks_exact(4), y.chunks_exact(4));
+    let tail: f64 = xc
+        .remainder()
+        .iter()
+        .zip(yc.remainder())
+        .map(|(a, b)| a * b)
+        .sum();
+    for (a, b) in xc.zip(yc) {
+        for i in 0..4 {
+            acc[i] += a[i] * b[i];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// y ← y + s·x.
+fn axpy(s: f64, x: &[f64], y: &mut [f64]) {
+    for (b, a) in y.iter_mut().zip(x) {
+        *b += s * a;
+    }
+}
+
+/// AᵀA of a column-major matrix, each entry of the upper triangle one dot product of two
+/// contiguous columns, mirrored to the lower.
+pub(crate) fn gram(a: &DMatrix<f64>) -> DMatrix<f64> {
+    let (m, n) = a.shape();
+    let data = a.as_slice();
+    let mut g = DMatrix::zeros(n, n);
+    for i in 0..n {
+        let ci = &data[i * m..(i + 1) * m];
+        for j in i..n {
+            let v = dot(ci, &data[j * m..(j + 1) * m]);
+            g[(i, j)] = v;
+            g[(j, i)] = v;
+        }
+    }
+    g
+}
+
+/// Aᵀx of a column-major matrix.
+pub(crate) fn transpose_times(a: &DMatrix<f64>, x: &DVector<f64>) -> DVector<f64> {
+    let m = a.nrows();
+    let data = a.as_slice();
+    DVector::from_fn(a.ncols(), |i, _| {
+        dot(&data[i * m..(i + 1) * m], x.as_slice())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gram_and_transpose_times_equal_the_products() {
+        let a = DMatrix::from_fn(103, 5, |r, c| {
+            ((r * 7 + c * 3) % 11) as f64 - 4.5 + c as f64
+        });
+        let x = DVector::from_fn(103, |r, _| (r as f64 * 0.1).sin());
+        assert!((gram(&a) - a.transpose() * &a).norm() < 1e-10);
+        assert!((transpose_times(&a, &x) - a.transpose() * &x).norm() < 1e-12);
+    }
+
+    #[test]
+    fn the_householder_factor_has_the_matrix_inner_products_and_singular_values() {
+        // A tall matrix with columns of very different sizes and one exactly dependent column.
+        let mut a = DMatrix::from_fn(301, 6, |r, c| {
+            let x = r as f64 * 0.37 + c as f64;
+            if c == 0 {
+                500.0 * x.cos()
+            } else {
+                (x * (c as f64 + 1.0)).sin()
+            }
+        });
+        let dependent = a.column(1) * 2.0 - a.column(0) * 0.002;
+        a.set_column(5, &dependent);
+        let r = householder_r(a.clone());
+        let (g, h) = (a.tr_mul(&a), r.tr_mul(&r));
+        for i in 0..6 {
+            for j in 0..6 {
+                assert!((g[(i, j)] - h[(i, j)]).abs() < 1e-9 * g.max(), "{i} {j}");
+            }
+            for k in i + 1..6 {
+                assert_eq!(r[(k, i)], 0.0);
+            }
+        }
+        let (sa, sr) = (a.singular_values(), r.singular_values());
+        let (mut sa, mut sr): (Vec<f64>, Vec<f64>) =
+            (sa.iter().copied().collect(), sr.iter().copied().collect());
+        sa.sort_by(f64::total_cmp);
+        sr.sort_by(f64::total_cmp);
+        for (x, y) in sa.iter().zip(&sr) {
+            assert!((x - y).abs() < 1e-12 * sa[5], "{x} vs {y}");
+        }
+        // The dependent column leaves a zero singular value.
+        assert!(sr[0] < 1e-12 * sr[5], "{}", sr[0]);
+    }
+}
