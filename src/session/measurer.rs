@@ -22,7 +22,7 @@ use crate::division::{MeasureError, Measurer};
 use crate::identification::Observation;
 use crate::kinematics::Robot;
 use crate::recording::{Recording, Status};
-use crate::session::plan::{order_region, target_point, Ordering, PlanOptions, PlannedPoint};
+use crate::session::plan::{order_region, target_point, Ordering, PlannedPoint};
 use crate::session::{Session, SessionError};
 
 /// A point the division asked for in an earlier run of a resumed session, as recorded.
@@ -73,6 +73,10 @@ pub struct SessionMeasurer<'s, 'r> {
     order: Ordering,
 }
 
+/// Layers this thin hold one point each: a batch's table z strictly ascends, as the
+/// recording shows it (thicker layers let z drop by up to a layer inside one).
+pub const STRICTLY_ASCENDING_MM: f64 = 1e-6;
+
 /// The order a session measures a batch of joint targets in, as indices into `qs`: ascending
 /// table z (`target` gives each one's table position) in layers of `layer_mm`, then x-y inside
 /// a layer by `order` ([`order_region`]). Ties keep the order asked, so the same batch always
@@ -114,13 +118,13 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
             replay: recorded.into(),
             replayed: 0,
             batches: 0,
-            layer_mm: PlanOptions::default().layer_mm,
+            layer_mm: STRICTLY_ASCENDING_MM,
             order: Ordering::ZThenXY,
         }
     }
 
-    /// Orders batches by `order` within z layers of `layer_mm` (default: the paper's z, then
-    /// x, then y, in the planner's 2 mm layers).
+    /// Orders batches by `order` within z layers of `layer_mm` (default: strictly ascending
+    /// table z, x-y breaking ties only).
     pub fn with_order(mut self, order: Ordering, layer_mm: f64) -> Self {
         self.order = order;
         self.layer_mm = layer_mm;
