@@ -34,7 +34,20 @@ pub trait Measurer {
     /// on without it; `Err` when the measurer cannot go on at all (a rig fault that stopped
     /// the session): the division stops at once and returns it.
     fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, MeasureError>;
+
+    /// Measurements at every location of one batch — a region's measurement locations, or its
+    /// test points — with the answers in the order asked. The default measures them one at a
+    /// time in that order; a session orders the batch for its rig (z-ascending, then x-y) and
+    /// measures it as one sequence. A stopped measurer stops the whole batch.
+    fn measure_batch(&mut self, qs: &[Vec<f64>]) -> Result<Vec<Option<Observation>>, MeasureError> {
+        qs.iter().map(|q| self.measure(q)).collect()
+    }
 }
+
+/// Rounds of replacements for the locations of a region's batch that turned out not
+/// measurable (skipped after their attempts, or refused); each round selects new locations in
+/// the same region with κ re-checked against what was measured.
+pub const REPLACEMENT_ROUNDS: usize = 3;
 
 /// A measurer that cannot go on (e.g. the session's rig stopped on a fault); the cause is kept
 /// as the error's source, so a caller can downcast it to its own type.
@@ -389,30 +402,42 @@ impl Ctx<'_, '_> {
             .collect()
     }
 
-    /// Planning mode: adds measurements in `b` until it holds `target` of them.
+    /// Planning mode: adds measurements in `b` until it holds `target` of them, a batch at a
+    /// time: the κ-selected locations as one batch, then (for the ones that could not be
+    /// measured) replacements selected against what was measured, up to
+    /// [`REPLACEMENT_ROUNDS`]. A region still short is left so: its fit says why.
     fn populate(&mut self, b: &Bounds, target: usize) -> Result<(), MeasureError> {
         let Mode::Planning(_) = self.mode else {
             return Ok(());
         };
-        let existing: Vec<Vec<f64>> = self
+        let mut existing: Vec<Vec<f64>> = self
             .in_box(b)
             .into_iter()
             .map(|(o, _)| o.q.clone())
             .collect();
-        if existing.len() >= target {
-            return Ok(());
-        }
-        let chosen = self.select(b, &existing, target - existing.len());
-        let Mode::Planning(m) = &mut self.mode else {
-            return Ok(());
-        };
-        for q in chosen {
-            if let Some(o) = m.measure(&q)? {
+        for _ in 0..=REPLACEMENT_ROUNDS {
+            if existing.len() >= target {
+                break;
+            }
+            let chosen = self.select(b, &existing, target - existing.len());
+            if chosen.is_empty() {
+                break;
+            }
+            for o in self.measure_batch(&chosen)?.into_iter().flatten() {
                 let x = self.space.coords(&o.q);
+                existing.push(o.q.clone());
                 self.data.push((o, x));
             }
         }
         Ok(())
+    }
+
+    /// One batch through the planning-mode measurer (none offline).
+    fn measure_batch(&mut self, qs: &[Vec<f64>]) -> Result<Vec<Option<Observation>>, MeasureError> {
+        match &mut self.mode {
+            Mode::Planning(m) => m.measure_batch(qs),
+            Mode::Offline(_) => Ok(vec![None; qs.len()]),
+        }
     }
 
     /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, keep
@@ -582,20 +607,23 @@ impl Ctx<'_, '_> {
 
     fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Result<Vec<f64>, MeasureError> {
         let model = expand(self.basis, self.n_params, cep);
-        let mut errors = Vec::new();
+        // The region's test points are one batch: chosen first, measured as one sequence.
+        let mut commands = Vec::new();
+        let mut targets = Vec::new();
         for u in design::test_design(self.opts.test_points) {
             let Some((target, command)) = self.test_command(b, &u, &model) else {
                 continue;
             };
-            let Mode::Planning(m) = &mut self.mode else {
-                break;
-            };
-            self.tests_made += 1;
-            if let Some(o) = m.measure(&command)? {
-                errors.push((o.p - target).norm());
-            }
+            commands.push(command);
+            targets.push(target);
         }
-        Ok(errors)
+        self.tests_made += commands.len();
+        let measured = self.measure_batch(&commands)?;
+        Ok(measured
+            .into_iter()
+            .zip(targets)
+            .filter_map(|(o, target)| o.map(|o| (o.p - target).norm()))
+            .collect())
     }
 
     /// The target at test location `u` (unit-cube coordinates of `b`) and the command that

@@ -1,9 +1,13 @@
 //! Planning mode through the rig: the division asks for measurements where it needs them and a
 //! [`Session`] measures each one — on the rig, or on the emulators for a dry run.
 //!
-//! Every request becomes a point of region [`DIVISION_REGION`] with the next point number (so
-//! approach directions keep alternating), checked like a planned point: one the rig cannot
-//! measure is written as `skipped: REASON` and reported to the division as failed. A session
+//! Every request becomes a point with the next point number (so approach directions keep
+//! alternating), checked like a planned point: one the rig cannot measure is written as
+//! `skipped: REASON` and reported to the division as failed. A batch (a region's measurement
+//! locations, or its test points) is measured as one sequence of region `div<k>` (`k`: the
+//! batch's number, from 1) in the session's order ([`batch_order`]: ascending table z, then
+//! x-y within a layer, the paper's section 7), one ascending-z pass of the table; the answers go
+//! back in the order asked. A single request is a point of region [`DIVISION_REGION`]. A session
 //! error (a fault the session cannot clear) stops the division at once: it is the
 //! [`MeasureError`]'s source, which the division returns to its caller.
 //!
@@ -18,7 +22,7 @@ use crate::division::{MeasureError, Measurer};
 use crate::identification::Observation;
 use crate::kinematics::Robot;
 use crate::recording::{Recording, Status};
-use crate::session::plan::{target_point, PlannedPoint};
+use crate::session::plan::{order_region, target_point, Ordering, PlannedPoint};
 use crate::session::{Session, SessionError};
 
 /// A point the division asked for in an earlier run of a resumed session, as recorded.
@@ -30,12 +34,20 @@ pub struct RecordedRequest {
     pub observation: Option<Observation>,
 }
 
-/// The division's requests a planning-mode recording holds, in order: each is one row of
-/// region [`DIVISION_REGION`] that is not a `via` row.
+/// True for a region id of the division's requests: [`DIVISION_REGION`], or a batch's
+/// `div<k>`.
+pub fn is_division_region(region: &str) -> bool {
+    region
+        .strip_prefix(DIVISION_REGION)
+        .is_some_and(|k| k.bytes().all(|b| b.is_ascii_digit()))
+}
+
+/// The division's requests a planning-mode recording holds, in the order measured: each is one
+/// row of a division region ([`is_division_region`]) that is not a `via` row.
 pub fn recorded_requests(rec: &Recording) -> Vec<RecordedRequest> {
     rec.rows
         .iter()
-        .filter(|m| m.region.as_deref() == Some(DIVISION_REGION) && m.status != Status::Via)
+        .filter(|m| m.region.as_deref().is_some_and(is_division_region) && m.status != Status::Via)
         .map(|m| RecordedRequest {
             q: m.q.clone(),
             observation: match m.status {
@@ -56,6 +68,35 @@ pub struct SessionMeasurer<'s, 'r> {
     rig: &'r crate::rig::Rig,
     replay: VecDeque<RecordedRequest>,
     replayed: usize,
+    batches: usize,
+    layer_mm: f64,
+    order: Ordering,
+}
+
+/// Layers this thin hold one point each: a batch's table z strictly ascends, as the
+/// recording shows it (thicker layers let z drop by up to a layer inside one).
+pub const STRICTLY_ASCENDING_MM: f64 = 1e-6;
+
+/// The order a session measures a batch of joint targets in, as indices into `qs`: ascending
+/// table z (`target` gives each one's table position) in layers of `layer_mm`, then x-y inside
+/// a layer by `order` ([`order_region`]). Ties keep the order asked, so the same batch always
+/// comes out the same.
+pub fn batch_order(
+    qs: &[Vec<f64>],
+    target: impl Fn(&[f64]) -> [f64; 3],
+    layer_mm: f64,
+    order: Ordering,
+) -> Vec<usize> {
+    let tagged: Vec<(Vec<f64>, [f64; 3])> = qs
+        .iter()
+        .enumerate()
+        // The index rides along as the first element, the joints are not needed to order.
+        .map(|(i, q)| (vec![i as f64], target(q)))
+        .collect();
+    order_region(tagged, layer_mm, order)
+        .into_iter()
+        .map(|(i, _)| i[0] as usize)
+        .collect()
 }
 
 impl<'s, 'r> SessionMeasurer<'s, 'r> {
@@ -76,7 +117,39 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
             rig,
             replay: recorded.into(),
             replayed: 0,
+            batches: 0,
+            layer_mm: STRICTLY_ASCENDING_MM,
+            order: Ordering::ZThenXY,
         }
+    }
+
+    /// Orders batches by `order` within z layers of `layer_mm` (default: strictly ascending
+    /// table z, x-y breaking ties only).
+    pub fn with_order(mut self, order: Ordering, layer_mm: f64) -> Self {
+        self.order = order;
+        self.layer_mm = layer_mm;
+        self
+    }
+
+    /// Batches asked for so far (replayed ones included).
+    pub fn batches(&self) -> usize {
+        self.batches
+    }
+
+    /// One request of `region`: from the recording while it lasts, then through the session.
+    fn one(&mut self, q: &[f64], region: &str) -> Result<Option<Observation>, MeasureError> {
+        if let Some(answer) = self.replay(q) {
+            return answer.map_err(MeasureError::new);
+        }
+        let p = PlannedPoint {
+            point: self.session.points_done() + 1,
+            region: region.into(),
+            q: q.to_vec(),
+            table_mm: target_point(self.rig, q),
+        };
+        self.session
+            .measure_point(&p, false)
+            .map_err(MeasureError::new)
     }
 
     /// The next recorded answer, if `q` is what was recorded; the divergence as the error
@@ -119,17 +192,30 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
 
 impl Measurer for SessionMeasurer<'_, '_> {
     fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, MeasureError> {
-        if let Some(answer) = self.replay(q) {
-            return answer.map_err(MeasureError::new);
+        self.one(q, DIVISION_REGION)
+    }
+
+    fn measure_batch(&mut self, qs: &[Vec<f64>]) -> Result<Vec<Option<Observation>>, MeasureError> {
+        self.batches += 1;
+        let region = format!("{DIVISION_REGION}{}", self.batches);
+        // Ordered by where the table will go: through the session's registration (journaled,
+        // so a resumed session orders a batch as the first run did).
+        let session = &*self.session;
+        let rig = self.rig;
+        let order = batch_order(
+            qs,
+            |q| {
+                session
+                    .table_target(q)
+                    .unwrap_or_else(|| target_point(rig, q))
+            },
+            self.layer_mm,
+            self.order,
+        );
+        let mut out = vec![None; qs.len()];
+        for i in order {
+            out[i] = self.one(&qs[i], &region)?;
         }
-        let p = PlannedPoint {
-            point: self.session.points_done() + 1,
-            region: DIVISION_REGION.into(),
-            q: q.to_vec(),
-            table_mm: target_point(self.rig, q),
-        };
-        self.session
-            .measure_point(&p, false)
-            .map_err(MeasureError::new)
+        Ok(out)
     }
 }

@@ -25,7 +25,9 @@ pub mod run;
 mod sensor;
 
 pub use journal::{Journal, JournalError};
-pub use measurer::{recorded_requests, RecordedRequest, SessionMeasurer};
+pub use measurer::{
+    batch_order, is_division_region, recorded_requests, RecordedRequest, SessionMeasurer,
+};
 pub use plan::{
     estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
     ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint, RigSpeeds,

@@ -484,8 +484,12 @@ pub struct RigSpeeds {
     pub table_dec: f64,
     /// Final approach speed (mm/s), from the latency rule.
     pub approach_mm_s: f64,
-    /// Per-point overhead of serial and CAN exchanges (s).
-    pub overhead_s: f64,
+    /// The arm controller's reply latency (s).
+    pub arm_reply_s: f64,
+    /// The table's bus latency per CAN exchange (s).
+    pub bus_latency_s: f64,
+    /// Touch to first panel packet (s).
+    pub touch_latency_s: f64,
 }
 
 impl RigSpeeds {
@@ -505,8 +509,67 @@ impl RigSpeeds {
                 std::time::Duration::ZERO,
                 cfg.panel.max_overshoot_mm,
             ),
-            overhead_s: 0.3,
+            arm_reply_s: cfg.arm.sim_reply_ms / 1000.0,
+            bus_latency_s: cfg.table.bus_latency_ms / 1000.0,
+            touch_latency_s: cfg.panel.latency_ms / 1000.0,
         }
+    }
+}
+
+/// Where the rig time of a session goes (s); the parts add up to the total.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct TimeBreakdown {
+    /// Arm moves the table does not hide: the arm's part of the travel between points where it
+    /// is the slower, and the short move from the via pose onto the target.
+    pub arm_s: f64,
+    /// Table travel in x-y where the table is the slower (arm and table move together).
+    pub table_s: f64,
+    /// The table's clearance moves: down before travelling, back up to the approach start.
+    pub clearance_s: f64,
+    /// Contact approaches: locating, back-off, final (on a point-sensor rig: the reading).
+    pub approach_s: f64,
+    /// Device exchanges and reply latencies (serial, CAN, touch packets).
+    pub settling_s: f64,
+    /// The registration poses, all their parts.
+    pub registration_s: f64,
+    /// The drift-reference poses, all their parts.
+    pub reference_s: f64,
+}
+
+impl TimeBreakdown {
+    /// The sum of the parts (s).
+    pub fn total_s(&self) -> f64 {
+        self.arm_s
+            + self.table_s
+            + self.clearance_s
+            + self.approach_s
+            + self.settling_s
+            + self.registration_s
+            + self.reference_s
+    }
+
+    fn add(&mut self, o: &TimeBreakdown) {
+        self.arm_s += o.arm_s;
+        self.table_s += o.table_s;
+        self.clearance_s += o.clearance_s;
+        self.approach_s += o.approach_s;
+        self.settling_s += o.settling_s;
+    }
+
+    /// One line: each part in s and as a share of the total.
+    pub fn describe(&self) -> String {
+        let t = self.total_s().max(1e-9);
+        let part = |name: &str, v: f64| format!("{name} {v:.0} s ({:.0} %)", 100.0 * v / t);
+        [
+            part("arm moves", self.arm_s),
+            part("table moves", self.table_s),
+            part("clearance moves", self.clearance_s),
+            part("approaches", self.approach_s),
+            part("settling", self.settling_s),
+            part("registration", self.registration_s),
+            part("drift references", self.reference_s),
+        ]
+        .join(", ")
     }
 }
 
@@ -515,75 +578,168 @@ impl RigSpeeds {
 pub struct RigTimeEstimate {
     /// Total (s).
     pub total_s: f64,
-    /// Of which arm/table motion between points (s).
+    /// Of which arm/table motion between points (arm, table and clearance moves, s).
     pub motion_s: f64,
-    /// Of which contact approaches (s).
+    /// Of which contact approaches and device exchanges (s).
     pub contact_s: f64,
     /// Points, registration poses included.
     pub points: usize,
     /// Of which registration poses (region `reg`).
     pub registration_points: usize,
+    /// Where the time goes.
+    pub breakdown: TimeBreakdown,
 }
 
-/// Estimates the rig time of `points` from the device speeds: per point, the slower of the arm
-/// (via then target, largest joint change) and the table (trapezoidal profile per axis), then
-/// the two-stage contact (a sensor reading on a point-sensor rig), plus the overhead.
+/// The largest joint change between `a` and `b` (deg).
+fn largest_joint_change_deg(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs().to_degrees())
+        .fold(0.0, f64::max)
+}
+
+/// Device exchanges of one point whose latencies the session waits out (counted from the
+/// contact procedure): arm replies (move, pose check) for the via and the target moves, and
+/// CAN rounds (speed, start, position, halt) plus touch latencies for the table's moves.
+const ARM_REPLIES_PER_POINT: f64 = 4.0;
+/// CAN exchanges per point whose bus latency the session waits out.
+const CAN_ROUNDS_PER_POINT: f64 = 6.0;
+
+/// The session's walk through the points, timed step by step as the contact procedure makes
+/// them (the same moves, in the same order, on the same profiles).
+struct Walk<'a> {
+    rig: &'a Rig,
+    speeds: &'a RigSpeeds,
+    contact: &'a ContactSettings,
+    q_at: Option<Vec<f64>>,
+    table_at: [f64; 3],
+}
+
+impl Walk<'_> {
+    fn arm_s(&self, from: &[f64], to: &[f64]) -> f64 {
+        largest_joint_change_deg(from, to) / self.speeds.arm_deg_s.max(1e-9)
+    }
+
+    fn axis_s(&self, from: f64, to: f64, v: f64) -> f64 {
+        let s = self.speeds;
+        Profile::new(
+            std::time::Duration::ZERO,
+            from,
+            to,
+            v,
+            s.table_acc,
+            s.table_dec,
+        )
+        .duration_s()
+    }
+
+    fn table_s(&self, from: [f64; 3], to: [f64; 3]) -> f64 {
+        (0..3)
+            .map(|k| self.axis_s(from[k], to[k], self.speeds.table_mm_s))
+            .fold(0.0, f64::max)
+    }
+
+    /// One point of the table-and-panel rig.
+    fn contact_point(&mut self, p: &PlannedPoint) -> TimeBreakdown {
+        let (c, s) = (self.contact, self.speeds);
+        let mut t = TimeBreakdown::default();
+        let signs = approach_signs(self.rig, p.point);
+        let via = via_pose(self.rig, &p.q, &signs, c.via_delta);
+        let start = [
+            p.table_mm[0],
+            p.table_mm[1],
+            (p.table_mm[2] - c.margin_mm).max(0.0),
+        ];
+        let via_z = table_target(self.rig, &via).map_or(start[2], |v| v[2] - c.margin_mm);
+        let start_z = start[2].min(via_z).max(0.0);
+        let here = self.table_at;
+        let clear = (here[2].min(start_z) - c.clearance_mm).max(0.0);
+        if here[2] > clear + 1e-3 {
+            t.clearance_s += self.axis_s(here[2], clear, s.table_mm_s);
+        }
+        let arm = self.q_at.as_deref().map_or(0.0, |q| self.arm_s(q, &via));
+        let table = self.table_s([here[0], here[1], clear], [start[0], start[1], clear]);
+        if arm >= table {
+            t.arm_s += arm;
+        } else {
+            t.table_s += table;
+        }
+        t.arm_s += self.arm_s(&via, &p.q);
+        t.clearance_s += self.axis_s(clear, start[2], s.table_mm_s);
+        let contact_z = p.table_mm[2];
+        let back = contact_z - c.backoff_mm;
+        t.approach_s += self.axis_s(start[2], contact_z, c.fast_mm_s)
+            + self.axis_s(contact_z, back, s.table_mm_s)
+            + self.axis_s(back, contact_z, s.approach_mm_s);
+        t.settling_s += 2.0 * s.touch_latency_s
+            + ARM_REPLIES_PER_POINT * s.arm_reply_s
+            + CAN_ROUNDS_PER_POINT * s.bus_latency_s;
+        self.table_at = p.table_mm;
+        t
+    }
+
+    /// One point of a point-sensor rig.
+    fn sensor_point(&mut self, p: &PlannedPoint) -> TimeBreakdown {
+        let signs = approach_signs(self.rig, p.point);
+        let via = via_pose(self.rig, &p.q, &signs, self.contact.via_delta);
+        let mut t = TimeBreakdown::default();
+        t.arm_s +=
+            self.q_at.as_deref().map_or(0.0, |q| self.arm_s(q, &via)) + self.arm_s(&via, &p.q);
+        t.approach_s += crate::devices::emulators::sensor::SENSOR_LATENCY.as_secs_f64();
+        t.settling_s += ARM_REPLIES_PER_POINT * self.speeds.arm_reply_s;
+        t
+    }
+}
+
+/// Estimates the rig time of `points` from the device speeds, walking the session's own
+/// sequence per point (the contact procedure's moves on the drives' profiles): the table down
+/// to its clearance height, arm and table together to the via pose and the approach start (the
+/// slower counts), the arm onto the target, the table up to the approach start, the locating
+/// approach, the back-off, the final approach; a sensor reading on a point-sensor rig; the
+/// device exchanges' latencies besides. Registration and drift-reference poses are counted
+/// apart in the breakdown.
 pub fn estimate(
     rig: &Rig,
     points: &[PlannedPoint],
     speeds: &RigSpeeds,
     contact: &ContactSettings,
 ) -> RigTimeEstimate {
-    let mut q_at: Option<Vec<f64>> = None;
-    let mut t_at: Option<[f64; 3]> = None;
+    let table_rig = matches!(rig.instrument, Instrument::TablePanel(_));
+    // From the arm's nest, the table centred in x-y at the bottom of z (where it powers up).
+    let cfg = rig.devices.clone().unwrap_or_default();
+    let nest = (cfg.arm.nest_deg.len() == rig.chain.joints().len())
+        .then(|| cfg.arm.nest_deg.iter().map(|d| d.to_radians()).collect());
+    let table_start = match &rig.instrument {
+        Instrument::TablePanel(tp) => [tp.travel_mm.x / 2.0, tp.travel_mm.y / 2.0, 0.0],
+        _ => [0.0; 3],
+    };
+    let mut walk = Walk {
+        rig,
+        speeds,
+        contact,
+        q_at: nest,
+        table_at: table_start,
+    };
     let mut est = RigTimeEstimate {
         points: points.len(),
         registration_points: points.iter().filter(|p| p.region == "reg").count(),
         ..Default::default()
     };
+    let b = &mut est.breakdown;
     for p in points {
-        let signs = approach_signs(rig, p.point);
-        let via = via_pose(rig, &p.q, &signs, contact.via_delta);
-        let big = |a: &[f64], b: &[f64]| {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| (x - y).abs().to_degrees())
-                .fold(0.0, f64::max)
-        };
-        let arm_s = (q_at.as_deref().map_or(0.0, |q| big(q, &via)) + big(&via, &p.q))
-            / speeds.arm_deg_s.max(1e-9);
-        let start = [
-            p.table_mm[0],
-            p.table_mm[1],
-            p.table_mm[2] - contact.margin_mm,
-        ];
-        let table_rig = matches!(rig.instrument, Instrument::TablePanel(_));
-        let table_s = t_at.filter(|_| table_rig).map_or(0.0, |from| {
-            (0..3)
-                .map(|k| {
-                    Profile::new(
-                        std::time::Duration::ZERO,
-                        from[k],
-                        start[k],
-                        speeds.table_mm_s,
-                        speeds.table_acc,
-                        speeds.table_dec,
-                    )
-                    .duration_s()
-                })
-                .fold(0.0, f64::max)
-        });
-        let contact_s = if table_rig {
-            contact.margin_mm / contact.fast_mm_s
-                + contact.backoff_mm / speeds.table_mm_s.max(1e-9)
-                + contact.backoff_mm / speeds.approach_mm_s.max(1e-9)
+        let t = if table_rig {
+            walk.contact_point(p)
         } else {
-            crate::devices::emulators::sensor::SENSOR_LATENCY.as_secs_f64()
+            walk.sensor_point(p)
         };
-        est.motion_s += arm_s.max(table_s);
-        est.contact_s += contact_s + speeds.overhead_s;
-        q_at = Some(p.q.clone());
-        t_at = Some(p.table_mm);
+        walk.q_at = Some(p.q.clone());
+        est.motion_s += t.arm_s + t.table_s + t.clearance_s;
+        est.contact_s += t.approach_s + t.settling_s;
+        match p.region.as_str() {
+            "reg" => b.registration_s += t.total_s(),
+            REFERENCE_REGION => b.reference_s += t.total_s(),
+            _ => b.add(&t),
+        }
     }
     est.total_s = est.motion_s + est.contact_s;
     est

@@ -260,6 +260,12 @@ impl<'a> Session<'a> {
         self.next_point
     }
 
+    /// Where the table goes for `q` (mm, table frame) through the session's registration;
+    /// `None` before a registration or on a point-sensor rig.
+    pub fn table_target(&self, q: &[f64]) -> Option<[f64; 3]> {
+        self.run.core.registered_table_target(q)
+    }
+
     /// Session time now (s): the rig time so far.
     pub fn rig_time_s(&self) -> f64 {
         self.run.core.now_s()
@@ -273,7 +279,11 @@ impl<'a> Session<'a> {
         p: &PlannedPoint,
         last: bool,
     ) -> Result<Option<Observation>, SessionError> {
-        let measured = self.runtime.block_on(self.run.point(p))?;
+        let measured = self.runtime.block_on(async {
+            let measured = self.run.point(p).await?;
+            self.run.where_the_devices_stand().await?;
+            Ok::<_, SessionError>(measured)
+        })?;
         self.next_point += 1;
         let core = &mut self.run.core;
         core.report.points = core.report.points.max(self.next_point);
@@ -441,6 +451,31 @@ impl<'a> Run<'a> {
             }
         }
         Ok(j.next_point)
+    }
+
+    /// Makes sure the core knows where arm and table stand before the journal is committed: a
+    /// point given up after a failed or refused move leaves the table's position unknown (and
+    /// the arm where an abandoned move took it), and a resume must take both back to where the
+    /// uninterrupted session had them, or its next moves (and their times) differ.
+    async fn where_the_devices_stand(&mut self) -> Result<(), SessionError> {
+        let q = self
+            .motion
+            .arm
+            .call(IO, |a| a.commanded())
+            .await
+            .map_err(dev("reading the arm"))?;
+        if q.is_some() {
+            self.core.arm_q = q;
+        }
+        if self.core.table_at.is_none() && self.motion.has_table() {
+            let table = self.motion.table().map_err(dev("reading the table"))?;
+            let at = table
+                .run(IO, |t| t.position(IO))
+                .await
+                .map_err(dev("reading the table's position"))?;
+            self.core.table_at = Some(at);
+        }
+        Ok(())
     }
 
     /// Measures one point and writes its rows; the commanded joints and measured position.
