@@ -8,8 +8,8 @@
 //! on: the run ends as an uninterrupted one would.
 
 use super::{Calibrated, CalibrationError, CalibrationOptions, Source};
-use crate::rig::Rig;
 use crate::division::DivisionError;
+use crate::rig::Rig;
 use crate::session::{
     recorded_requests, RecordedRequest, Session, SessionError, SessionMeasurer, SessionReport,
 };

@@ -257,13 +257,7 @@ fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Re
         notes: Some(notes),
         ..Default::default()
     };
-    let r = run_session(
-        &rig,
-        opened,
-        &points,
-        opts,
-        &Progress::auto(points.len()),
-    )?;
+    let r = run_session(&rig, opened, &points, opts, &Progress::auto(points.len()))?;
     print_session(dir, &r);
     Ok(())
 }

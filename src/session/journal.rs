@@ -132,7 +132,10 @@ mod tests {
             "history":{"moves":4,"t_s":11.0},"arm_q":null,"table_mm":null,
             "registration":null,"csv_bytes":100,"rows":8,"finished":false}"#;
         let j: Journal = serde_json::from_str(old).expect("an older journal");
-        assert_eq!(j.rig_state, Some(serde_json::json!({"moves": 4, "t_s": 11.0})));
+        assert_eq!(
+            j.rig_state,
+            Some(serde_json::json!({"moves": 4, "t_s": 11.0}))
+        );
         let text = serde_json::to_string(&j).expect("serialises");
         assert!(text.contains("\"rig_state\":{"), "{text}");
         let back: Journal = serde_json::from_str(&text).expect("reads back");
