@@ -1,10 +1,11 @@
 //! `rigcal compensate`: joint commands for target positions with a calibrated model
 //! ([`crate::compensation::compensate_targets`]).
 
-use crate::compensation::{compensate_targets, CompensationOptions};
+use crate::compensation::{compensate_targets, with_pose_columns, CompensationOptions};
 use crate::kinematics::Robot;
 use crate::model::ModelFile;
 use crate::recording::{commands_csv, read_targets};
+use crate::rig::controller::{CommandPath, ControllerKinematics};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
@@ -12,7 +13,7 @@ use std::path::PathBuf;
 #[derive(Debug, clap::Args)]
 #[command(mut_args(super::help_of(
     "out",
-    "Output CSV: one row of joint commands (`q1_deg…`) per target, same order"
+    "Output CSV: one row of joint commands (`q1_deg…`) per target, same order; on a rig whose `[devices.arm] command_path` is `cartesian`, the `MP` pose of each command beside it (`mp_x_mm…mp_roll_deg`, controller frame, one decimal)"
 )))]
 pub struct Args {
     /// Model file written by `rigcal identify` or `rigcal calibrate`.
@@ -42,12 +43,23 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::Error::new(e.source).context(format!("{}: line {}", a.targets.display(), e.line))
     })?;
     let worst = commands.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
-    let text = commands_csv(
+    let mut text = commands_csv(
         chain.joints(),
         commands.iter().map(|c| c.command.as_slice()),
     );
+    let path = rig
+        .devices
+        .as_ref()
+        .map(|d| d.arm.command_path)
+        .unwrap_or_default();
+    if path == CommandPath::Cartesian {
+        let controller = ControllerKinematics::of_rig(rig)?;
+        let joints: Vec<Vec<f64>> = commands.iter().map(|c| c.command.clone()).collect();
+        text = with_pose_columns(&text, &controller, &joints);
+    }
     let out = &a.out.out;
     std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
+    println!("command path: {path}");
     println!(
         "{} targets compensated (largest modelled error left {:.1e} mm); commands written to {}",
         targets.len(),
