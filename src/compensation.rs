@@ -347,3 +347,27 @@ fn finish_command(
         iterations,
     })
 }
+
+/// The `MP` poses of compensated joint commands as CSV columns beside the joints: each line of
+/// `joints_csv` (header first) gets `mp_x_mm,mp_y_mm,mp_z_mm,mp_pitch_deg,mp_roll_deg`, the
+/// nominal pose of the command in the controller's frame, one decimal as `MP` sends it.
+pub fn with_pose_columns(
+    joints_csv: &str,
+    controller: &crate::rig::controller::ControllerKinematics,
+    commands: &[Vec<f64>],
+) -> String {
+    let mut out = String::with_capacity(joints_csv.len() * 2);
+    for (k, line) in joints_csv.lines().enumerate() {
+        out.push_str(line);
+        if k == 0 {
+            out.push_str(",mp_x_mm,mp_y_mm,mp_z_mm,mp_pitch_deg,mp_roll_deg");
+        } else if let Some(q) = commands.get(k - 1) {
+            let pose = crate::rig::controller::ControllerKinematics::rounded(&controller.pose(q));
+            for v in pose {
+                out.push_str(&format!(",{v:.1}"));
+            }
+        }
+        out.push('\n');
+    }
+    out
+}

@@ -552,3 +552,63 @@ fn waiting_for_the_table_times_out_with_target_and_position() {
     let p = d.table().unwrap().wait_reached(T).unwrap();
     assert!((p[2] - 500.0).abs() < 0.001);
 }
+
+#[test]
+fn cartesian_moves_send_mp_and_land_within_the_command_rounding() {
+    use rigcal::rig::controller::ControllerKinematics;
+    let rig = rig();
+    let mut d = devices(&rig);
+    let sim = d.sim.clone().unwrap();
+    d.arm.home(T).unwrap();
+    let k = ControllerKinematics::of_rig(&rig).unwrap();
+    let nominal = ErrorParams::zeros(rig.chain.layout());
+    let targets = [
+        [10.037, 80.061, -60.023, 0.0, 0.0],
+        [-20.511, 60.203, -75.777, 0.0, 0.0],
+    ];
+    for t in targets {
+        let q = deg(&t);
+        let landed = d.arm.move_cartesian(&q, T).unwrap();
+        for (a, b) in d.arm.commanded().unwrap().iter().zip(&landed) {
+            assert!((a - b).abs() < 1e-12);
+        }
+        // Off the 0.1° grid, but within 0.05 mm per axis of the target: the pose's rounding.
+        let miss =
+            (rig.chain.position(&landed, &nominal) - rig.chain.position(&q, &nominal)).norm();
+        assert!(miss <= 0.05 * 3f64.sqrt() + 1e-6, "{miss}");
+        // The controller's own report of where it is (0.1 mm) agrees.
+        let wh = d.arm.where_pose(T).unwrap();
+        let p = k.frame().from_world(&rig.chain.position(&landed, &nominal));
+        assert!((nalgebra::Vector3::from(wh.xyz_mm) - p).norm() < 0.1);
+        let sent = sim.arm.as_ref().unwrap().lock().unwrap().received.clone();
+        let pose = ControllerKinematics::rounded(&k.pose(&q));
+        let text = String::from_utf8(
+            rigcal::protocols::movemaster::Command::move_pose(&pose)
+                .unwrap()
+                .encode(),
+        )
+        .unwrap();
+        assert!(sent.contains(&text.trim_end().to_string()), "{sent:?}");
+    }
+    // A joint move after a Cartesian one stays relative to where the arm really is.
+    let before = d.arm.commanded().unwrap();
+    let mut q = before.clone();
+    q[0] += 0.1_f64.to_radians();
+    let got = d.arm.move_to(&q, T).unwrap();
+    assert!((got[0] - q[0]).abs() < 1e-9 && (got[1] - before[1]).abs() < 1e-12);
+}
+
+#[test]
+fn cartesian_targets_outside_the_limits_are_refused_before_any_byte() {
+    let rig = rig();
+    let mut d = devices(&rig);
+    let sim = d.sim.clone().unwrap();
+    d.arm.home(T).unwrap();
+    let sent = sim.arm.as_ref().unwrap().lock().unwrap().received.len();
+    let e = d
+        .arm
+        .move_cartesian(&deg(&[10.0, 105.0, -60.0, 0.0, 0.0]), T)
+        .unwrap_err();
+    assert_eq!(e.kind(), DeviceErrorKind::Refused, "{e}");
+    assert_eq!(sim.arm.unwrap().lock().unwrap().received.len(), sent);
+}

@@ -106,6 +106,37 @@ fn movemaster_encode_literal() {
 }
 
 #[test]
+fn movemaster_mp_literal_bytes_and_decoding() {
+    let mp = Command::move_pose(&[250.04, -0.05, 400.0, -89.96, 12.349]).unwrap();
+    assert_eq!(mp.encode(), b"MP +250.0,-0.1,+400.0,-90.0,+12.3\r");
+    assert_eq!(
+        Command::decode(b"MP +250.0,-0.1,+400.0,-90.0,+12.3\r").unwrap(),
+        mp
+    );
+    assert_eq!(Command::decode(b"MP250,-.1,400,-90.0,12.30").unwrap(), mp);
+    assert!(matches!(
+        Command::decode(b"MP 1,2,3,4\r"),
+        Err(MovemasterError::WrongFieldCount {
+            what: "MP",
+            expected: 5,
+            found: 4
+        })
+    ));
+    assert!(matches!(
+        Command::decode(b"MP 1,2,x,4,5\r"),
+        Err(MovemasterError::BadNumber {
+            what: "MP",
+            field: 2,
+            ..
+        })
+    ));
+    assert!(matches!(
+        Command::move_pose(&[f64::NAN, 0.0, 0.0, 0.0, 0.0]),
+        Err(MovemasterError::NotFinite { .. })
+    ));
+}
+
+#[test]
 fn movemaster_decode_accepts_manual_forms() {
     let expected = Command::MoveJoints([dec(10.0), dec(-5.5), dec(0.0), dec(0.0), dec(0.0)]);
     for line in [
@@ -1077,6 +1108,7 @@ fn arb_command() -> impl Strategy<Value = Command> {
                 accel: a
             }),
         proptest::array::uniform5(arb_decimal()).prop_map(Command::MoveJoints),
+        proptest::array::uniform5(arb_decimal()).prop_map(Command::MovePose),
         (1u8..=5, arb_decimal()).prop_map(|(j, a)| Command::MoveJoint {
             joint: JointNumber::new(j).unwrap(),
             angle: a
@@ -1133,6 +1165,16 @@ proptest! {
     fn can_frame_constructor_never_panics(id in any::<u32>(), ext in any::<bool>(), data in proptest::collection::vec(any::<u8>(), 0..12)) {
         let r = if ext { CanFrame::new_extended(id, &data) } else { CanFrame::new_standard(id as u16, &data) };
         if let Ok(f) = r { prop_assert!(f.data().len() <= 8); }
+    }
+
+    #[test]
+    fn movemaster_mp_decoder_and_encoder_never_panic(tail in proptest::collection::vec(any::<u8>(), 0..48), pose in proptest::array::uniform5(any::<f64>())) {
+        let mut line = b"MP ".to_vec();
+        line.extend(tail);
+        let _ = Command::decode(&line);
+        if let Ok(c) = Command::move_pose(&pose) {
+            prop_assert_eq!(Command::decode(&c.encode()), Ok(c));
+        }
     }
 
     #[test]

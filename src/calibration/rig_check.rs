@@ -163,6 +163,33 @@ pub fn resolution_floor(rig: &Rig, commands: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
+/// How far the Cartesian command path moves the nominal tip from each command (mm): the pose
+/// rounded to 0.1 mm / 0.1°, solved by the controller's nominal inverse kinematics, rounded to
+/// its servo resolution: the floor of `MP` compensation on the rig. `None` if the rig's
+/// controller has no Cartesian kinematics or a command has no solution.
+pub fn cartesian_floor(rig: &Rig, commands: &[Vec<f64>]) -> Option<Vec<f64>> {
+    let k = crate::rig::controller::ControllerKinematics::of_rig(rig).ok()?;
+    let servo = rig
+        .devices
+        .as_ref()
+        .map_or(0.001, |d| d.arm.sim_servo_resolution_deg);
+    commands
+        .iter()
+        .map(|q| {
+            let landed = k.landing(q, servo).ok()?;
+            Some((k.world_position(&landed) - k.world_position(q)).norm())
+        })
+        .collect()
+}
+
+/// The rig's command path for compensated moves.
+pub fn command_path(rig: &Rig) -> crate::rig::controller::CommandPath {
+    rig.devices
+        .as_ref()
+        .map(|d| d.arm.command_path)
+        .unwrap_or_default()
+}
+
 /// The arm controller's command resolution (deg).
 pub fn resolution_deg(rig: &Rig) -> f64 {
     rig.devices.clone().unwrap_or_default().arm.resolution_deg
@@ -183,6 +210,10 @@ pub struct RigPathCheck {
     pub floor_mm: Vec<f64>,
     /// The controller's command resolution (deg).
     pub resolution_deg: f64,
+    /// What the Cartesian path's rounding moves the compensated tip (mm), if the controller has one.
+    pub floor_cartesian_mm: Option<Vec<f64>>,
+    /// The command path the compensated session went through.
+    pub command_path: crate::rig::controller::CommandPath,
 }
 
 impl RigPathCheck {
@@ -208,6 +239,8 @@ impl RigPathCheck {
             results: vec![result("uncalibrated", nominal), result(model, compensated)],
             floor_mm: resolution_floor(rig, &commands.compensated),
             resolution_deg: resolution_deg(rig),
+            floor_cartesian_mm: cartesian_floor(rig, &commands.compensated),
+            command_path: command_path(rig),
         }
     }
 
@@ -243,6 +276,64 @@ impl RigPathCheck {
             self.floor_mm.iter().sum::<f64>() / self.floor_mm.len().max(1) as f64,
             self.floor_mm.iter().copied().fold(0.0, f64::max)
         );
+        if let Some(f) = &self.floor_cartesian_mm {
+            let _ = writeln!(
+                s,
+                "  the Cartesian path (MP, 0.1 mm / 0.1°, then the servo) alone moves it by {:.4} mm mean, {:.4} mm max: the floor of MP compensation",
+                f.iter().sum::<f64>() / f.len().max(1) as f64,
+                f.iter().copied().fold(0.0, f64::max)
+            );
+        }
+        let _ = writeln!(
+            s,
+            "  compensated commands went through the {} path",
+            self.command_path
+        );
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cartesian_floor_is_an_order_below_the_joint_floor() {
+        let rig = Rig::load(Path::new("rigs/rv-m2.toml")).unwrap();
+        let path = joint_path(
+            &rig,
+            "test",
+            &[-20.0, 40.0, -60.0],
+            &[25.0, 70.0, -100.0],
+            41,
+        );
+        // Commands off the 0.1° grid, as compensated ones are.
+        let commands: Vec<Vec<f64>> = path
+            .points
+            .iter()
+            .enumerate()
+            .map(|(k, q)| {
+                let mut q = q.clone();
+                for v in q.iter_mut().take(3) {
+                    *v += (0.0123 * k as f64 + 0.031).to_radians();
+                }
+                q
+            })
+            .collect();
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+        let joint = resolution_floor(&rig, &commands);
+        let cart = cartesian_floor(&rig, &commands).unwrap();
+        eprintln!(
+            "floors: joint {:.4} mean {:.4} max, cartesian {:.4} mean {:.4} max",
+            mean(&joint),
+            joint.iter().copied().fold(0.0, f64::max),
+            mean(&cart),
+            cart.iter().copied().fold(0.0, f64::max)
+        );
+        assert!(
+            mean(&cart) < 0.08 && mean(&joint) > 0.2,
+            "{joint:?} {cart:?}"
+        );
+        assert!(cart.iter().all(|d| *d < 0.1 * 3f64.sqrt()));
     }
 }

@@ -3,10 +3,11 @@
 //! approach, [`crate::compensation::hybrid::compensate_path`]).
 
 use crate::compensation::hybrid::{compensate_path, path_csv, Approach, HybridArm, HybridOptions};
-use crate::compensation::{compensate_targets, CompensationOptions, TargetError};
+use crate::compensation::{compensate_targets, with_pose_columns, CompensationOptions, TargetError};
 use crate::kinematics::Robot;
 use crate::model::{LoadedModel, ModelFile};
 use crate::recording::{commands_csv, read_targets, Target};
+use crate::rig::controller::{CommandPath, ControllerKinematics};
 use anyhow::{Context, Result};
 use std::path::PathBuf;
 
@@ -15,7 +16,9 @@ use std::path::PathBuf;
 #[command(mut_args(super::help_of(
     "out",
     "Output CSV: one row of joint commands (`q1_deg…`) per target, same order; with effects or \
-     `--approach consistent`, one row per move with a `move` column (`via` or `target`)"
+     `--approach consistent`, one row per move with a `move` column (`via` or `target`); on a rig \
+     whose `[devices.arm] command_path` is `cartesian`, the `MP` pose of each command beside it \
+     (`mp_x_mm…mp_roll_deg`, controller frame, one decimal)"
 )))]
 pub struct Args {
     /// Model file written by `rigcal identify` or `rigcal calibrate`.
@@ -57,13 +60,26 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--payload-kg must be zero or positive");
     }
     let hybrid = !loaded.file.effects.is_empty() || a.approach == ApproachArg::Consistent;
+    let path = loaded
+        .rig
+        .devices
+        .as_ref()
+        .map(|d| d.arm.command_path)
+        .unwrap_or_default();
     let (text, worst) = if hybrid {
         hybrid_commands(&loaded, &targets, &a).map_err(at_line)?
     } else {
-        plain_commands(&loaded, &targets).map_err(at_line)?
+        let (text, worst, joints) = plain_commands(&loaded, &targets).map_err(at_line)?;
+        let text = if path == CommandPath::Cartesian {
+            with_pose_columns(&text, &ControllerKinematics::of_rig(&loaded.rig)?, &joints)
+        } else {
+            text
+        };
+        (text, worst)
     };
     let out = &a.out.out;
     std::fs::write(out, text).with_context(|| format!("cannot write {}", out.display()))?;
+    println!("command path: {path}");
     for e in &loaded.file.effects {
         println!("compensating {}", e.text());
     }
@@ -79,7 +95,7 @@ pub fn run(a: Args) -> Result<()> {
 fn plain_commands(
     loaded: &LoadedModel,
     targets: &[(u64, Target)],
-) -> Result<(String, f64), TargetError> {
+) -> Result<(String, f64, Vec<Vec<f64>>), TargetError> {
     let chain = &loaded.rig.chain;
     let commands = compensate_targets(
         chain,
@@ -93,7 +109,7 @@ fn plain_commands(
         chain.joints(),
         commands.iter().map(|c| c.command.as_slice()),
     );
-    Ok((text, worst))
+    Ok((text, worst, commands.into_iter().map(|c| c.command).collect()))
 }
 
 fn hybrid_commands(

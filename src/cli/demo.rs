@@ -302,7 +302,13 @@ fn rig_path_check(
         dry_session(
             REAL_RIG,
             REAL_SCENARIO,
-            Plan::File(&plan, registration),
+            Plan::File(
+                &plan,
+                registration,
+                tag == "compensated"
+                    && rig_check::command_path(rig)
+                        == crate::rig::controller::CommandPath::Cartesian,
+            ),
             &dir,
         )?;
         recordings.push(Recording::read(&dir, rig.chain.joints())?);
@@ -321,8 +327,9 @@ enum Plan<'a> {
     /// This many points planned here from a seed, the dropped candidates reported; then a
     /// registration.
     Points(usize, u64),
-    /// The points of a plan file, in the frame of this registration.
-    File(&'a Path, RegistrationInfo),
+    /// The points of a plan file, in the frame of this registration; through the arm's
+    /// Cartesian command (`MP`) if the flag is set.
+    File(&'a Path, RegistrationInfo, bool),
 }
 
 /// Runs a dry-run session into `dir` as `rigcal session --sim` does: emulators on the virtual
@@ -348,7 +355,7 @@ fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Re
                 registration_points(&rig, opts.registration_points, seed),
             )
         }
-        Plan::File(file, registration) => {
+        Plan::File(file, registration, _) => {
             opts.seed = sc.seed;
             opts.registration = Some(registration);
             (read_plan(file, &rig)?, Vec::new())
@@ -367,7 +374,16 @@ fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Re
             &ContactSettings::of(&rig)
         ))
     );
-    let opened = crate::devices::open_rig(&rig, Some(&sc), crate::devices::SimClock::Virtual)?;
+    let cartesian = matches!(plan, Plan::File(_, _, true));
+    let mut opened = crate::devices::open_rig(&rig, Some(&sc), crate::devices::SimClock::Virtual)?;
+    if cartesian {
+        let crate::devices::OpenedRig { devices, hook } = opened;
+        let arm = Box::new(crate::devices::safety::CartesianArm::new(devices.arm));
+        opened = crate::devices::OpenedRig {
+            devices: crate::devices::RigDevices { arm, ..devices },
+            hook,
+        };
+    }
     opts.fsync = !opened.devices.clock.is_virtual();
     let notes = format!(
         "rigcal session: {} points, dry run on the virtual clock",

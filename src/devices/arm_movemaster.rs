@@ -12,6 +12,12 @@
 //! reported as commanded are the rounded ones. After a move the driver reads `WH` (the
 //! controller's Cartesian pose) and checks it against the nominal forward kinematics.
 //!
+//! Cartesian moves ([`Arm::start_move_cartesian`]) send `MP` with the nominal pose of the target
+//! joints in the controller's frame (rig file), rounded to 0.1 mm / 0.1°; the driver solves the
+//! controller's nominal inverse kinematics itself ([`ControllerKinematics`]) to know the joints
+//! the arm lands on, which need not lie on the `MJ` grid: the off-grid part is kept beside the
+//! counts, so later relative moves stay exact.
+//!
 //! A move may be waited for in slices ([`Arm::start_move`], then [`Arm::wait_moved`]). If the
 //! caller stops waiting (a fault elsewhere cancelled the motion: the controller has no stop
 //! command, so the arm goes on to its target), the move stays pending in the driver, and the
@@ -28,6 +34,7 @@ use crate::protocols::movemaster::{
     quantise_joint_move, Command, Decimal, ErrorStatus, JointNumber, LineFramer, MovemasterError,
     Resolution, SpeedLevel, WhereReply,
 };
+use crate::rig::controller::ControllerKinematics;
 use crate::rig::devices::ArmConfig;
 use crate::transports::{ByteTransport, TransportError};
 
@@ -42,6 +49,9 @@ pub struct MovemasterArm<T: ByteTransport> {
     framer: LineFramer,
     lines: VecDeque<Result<Vec<u8>, MovemasterError>>,
     commanded_counts: Option<[i64; 5]>,
+    /// Controller angle − counts · resolution per joint (deg): non-zero after an `MP`.
+    off_grid_deg: [f64; 5],
+    controller: ControllerKinematics,
     pending: Option<PendingMove>,
 }
 
@@ -52,6 +62,8 @@ struct PendingMove {
     command: String,
     /// The absolute counts it commands.
     counts: [i64; 5],
+    /// The off-grid part it leaves (deg).
+    off_grid_deg: [f64; 5],
     /// When it was sent and when its timeout runs out (clock time).
     started: Duration,
     deadline: Duration,
@@ -89,6 +101,12 @@ impl<T: ByteTransport> MovemasterArm<T> {
                 key: "arm.resolution_deg".into(),
                 reason: "must be a power of ten from 1 down to 0.0001".into(),
             })?;
+        let controller =
+            ControllerKinematics::new(chain.clone(), cfg.controller_frame, nalgebra::Vector3::x())
+                .map_err(|e| DeviceError::Config {
+                    key: "arm".into(),
+                    reason: e.to_string(),
+                })?;
         Ok(MovemasterArm {
             io,
             clock,
@@ -98,8 +116,16 @@ impl<T: ByteTransport> MovemasterArm<T> {
             framer: LineFramer::default(),
             lines: VecDeque::new(),
             commanded_counts: None,
+            off_grid_deg: [0.0; 5],
+            controller,
             pending: None,
         })
+    }
+
+    /// Uses `controller` (the rig's frame and pin axis) for Cartesian moves and the `WH` check.
+    pub fn with_controller(mut self, controller: ControllerKinematics) -> Self {
+        self.controller = controller;
+        self
     }
 
     fn sign(&self, k: usize) -> f64 {
@@ -115,7 +141,8 @@ impl<T: ByteTransport> MovemasterArm<T> {
             .iter()
             .enumerate()
             .map(|(k, c)| {
-                ((self.resolution.counts_to_deg(*c) - self.offset(k)) / self.sign(k)).to_radians()
+                let deg = self.resolution.counts_to_deg(*c) + self.off_grid_deg[k];
+                ((deg - self.offset(k)) / self.sign(k)).to_radians()
             })
             .collect()
     }
@@ -262,6 +289,7 @@ impl<T: ByteTransport> MovemasterArm<T> {
         let status = decode_status(&p.command, &line)?;
         self.outcome(p.command, status)?;
         self.commanded_counts = Some(p.counts);
+        self.off_grid_deg = p.off_grid_deg;
         let done = self.counts_to_q(&p.counts);
         self.check_where(&done, p.check_timeout)?;
         Ok(true)
@@ -297,7 +325,11 @@ impl<T: ByteTransport> MovemasterArm<T> {
         }
         let pose = self.where_pose(timeout)?;
         let e = ErrorParams::zeros(self.chain.layout());
-        let p = self.chain.position(q, &e);
+        // `WH` speaks the controller's frame.
+        let p = self
+            .controller
+            .frame()
+            .from_world(&self.chain.position(q, &e));
         let r = nalgebra::Vector3::from(pose.xyz_mm);
         let d = (p - r).norm();
         if d > self.cfg.where_tolerance_mm {
@@ -363,6 +395,7 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
                 })?;
         }
         self.commanded_counts = Some(counts);
+        self.off_grid_deg = [0.0; 5];
         let q = self.counts_to_q(&counts);
         if let Ok(level) = SpeedLevel::new(self.cfg.speed) {
             self.command(&Command::Speed { level, accel: None }, timeout)?;
@@ -399,7 +432,10 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
                 reason: format!("a move needs 5 joint values, got {}", q.len()),
             });
         }
-        let target = self.controller_deg(q);
+        let mut target = self.controller_deg(q);
+        for (t, o) in target.iter_mut().zip(self.off_grid_deg) {
+            *t -= o;
+        }
         let (mut cmd, counts) =
             quantise_joint_move(&target, &old, self.resolution).map_err(|e| {
                 DeviceError::Protocol {
@@ -434,11 +470,73 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
         self.pending = Some(PendingMove {
             command,
             counts,
+            off_grid_deg: self.off_grid_deg,
             started,
             deadline: started + timeout,
             check_timeout: timeout,
         });
         Ok(self.counts_to_q(&counts))
+    }
+
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.settle()?;
+        let Some(at) = self.commanded() else {
+            return Err(DeviceError::NotReady {
+                device: DeviceName::Arm,
+                detail: "joint positions unknown: home the arm (NT) first".into(),
+            });
+        };
+        if q.len() != 5 {
+            return Err(DeviceError::Config {
+                key: "arm".into(),
+                reason: format!("a move needs 5 joint values, got {}", q.len()),
+            });
+        }
+        let pose = ControllerKinematics::rounded(&self.controller.pose(q));
+        let cmd = Command::move_pose(&pose).map_err(|e| DeviceError::Protocol {
+            device: DeviceName::Arm,
+            request: "MP".into(),
+            detail: e.to_string(),
+        })?;
+        // The controller solves from where it is, as the driver does here.
+        let landed = self
+            .controller
+            .solve(&pose, &at)
+            .map_err(|e| DeviceError::PoseRefused {
+                pose,
+                detail: e.to_string(),
+            })?;
+        let exact = self.controller_deg(&landed);
+        let mut counts = [0i64; 5];
+        let mut off_grid = [0.0; 5];
+        for k in 0..5 {
+            counts[k] = self
+                .resolution
+                .to_counts(exact[k])
+                .map_err(|e| DeviceError::Protocol {
+                    device: DeviceName::Arm,
+                    request: "MP".into(),
+                    detail: e.to_string(),
+                })?;
+            off_grid[k] = exact[k] - self.resolution.counts_to_deg(counts[k]);
+        }
+        let command = text(&cmd);
+        self.send(&cmd)?;
+        self.request_status()?;
+        let started = self.clock.now();
+        self.pending = Some(PendingMove {
+            command,
+            counts,
+            off_grid_deg: off_grid,
+            started,
+            deadline: started + timeout,
+            check_timeout: timeout,
+        });
+        Ok(landed)
     }
 
     fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {

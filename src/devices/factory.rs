@@ -369,31 +369,34 @@ fn open_arm(
     controls: Option<&mut SimControls>,
     clock: &SharedClock,
 ) -> Result<Box<dyn Arm>, DeviceError> {
+    let kinematics = crate::rig::controller::ControllerKinematics::of_rig(rig).ok();
+    let driver =
+        |io: Box<dyn crate::transports::ByteTransport>| -> Result<Box<dyn Arm>, DeviceError> {
+            let arm = MovemasterArm::new(io, rig.chain.clone(), &cfg.arm, Arc::clone(clock))?;
+            Ok(match &kinematics {
+                Some(k) => Box::new(arm.with_controller(k.clone())),
+                None => Box::new(arm),
+            })
+        };
     let arm: Box<dyn Arm> = match emulator {
         Some(e) => {
             if let Some(c) = controls {
                 c.arm = Some(e.faults());
             }
-            let io = PolledSerial::new(e, Arc::clone(clock));
-            Box::new(MovemasterArm::new(
-                io,
-                rig.chain.clone(),
-                &cfg.arm,
-                Arc::clone(clock),
-            )?)
+            driver(Box::new(PolledSerial::new(e, Arc::clone(clock))))?
         }
-        None => {
-            let io = open_serial("arm", &cfg.arm.transport, &cfg.arm.serial)?;
-            Box::new(MovemasterArm::new(
-                io,
-                rig.chain.clone(),
-                &cfg.arm,
-                Arc::clone(clock),
-            )?)
-        }
+        None => driver(Box::new(open_serial(
+            "arm",
+            &cfg.arm.transport,
+            &cfg.arm.serial,
+        )?))?,
     };
     use crate::kinematics::Robot;
-    Ok(Box::new(LimitedArm::new(arm, rig.chain.joints().to_vec())))
+    let limited = LimitedArm::new(arm, rig.chain.joints().to_vec());
+    Ok(match kinematics {
+        Some(k) => Box::new(limited.with_controller(k)),
+        None => Box::new(limited),
+    })
 }
 
 /// A rig measured by a point sensor. No tracker driver exists yet: the sensor is simulated, so

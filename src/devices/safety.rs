@@ -1,7 +1,8 @@
 //! Safety wrappers: limits that wrap any device and refuse a command before a byte is sent.
 //!
 //! - [`LimitedArm`]: every joint within the rig's joint limits (radians inside, degrees in
-//!   errors).
+//!   errors); a Cartesian move's target joints and the joints the controller's nominal inverse
+//!   kinematics give for the pose as sent (rounded) both checked.
 //! - [`LimitedTable`]: every axis within the table travel 0..travel (mm, table frame), and z
 //!   ascending within a pass: after [`Table::begin_pass`], no move may go lower than the highest
 //!   z of the pass minus the rig file's `pass_retract_mm` (the z arm approaches from below).
@@ -10,18 +11,47 @@ use std::time::Duration;
 
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName, Table};
 use crate::kinematics::JointSpec;
+use crate::rig::controller::ControllerKinematics;
 
 /// An [`Arm`] that refuses targets outside the joint limits.
 #[derive(Debug)]
 pub struct LimitedArm<A> {
     inner: A,
     joints: Vec<JointSpec>,
+    controller: Option<ControllerKinematics>,
 }
 
 impl<A: Arm> LimitedArm<A> {
     /// Wraps `inner` with the limits of `joints`.
     pub fn new(inner: A, joints: Vec<JointSpec>) -> Self {
-        LimitedArm { inner, joints }
+        LimitedArm {
+            inner,
+            joints,
+            controller: None,
+        }
+    }
+
+    /// Also checks Cartesian moves through the controller's nominal inverse kinematics.
+    pub fn with_controller(mut self, controller: ControllerKinematics) -> Self {
+        self.controller = Some(controller);
+        self
+    }
+
+    /// The joints a Cartesian move of `q` makes the controller solve for, checked.
+    fn check_cartesian(&self, q: &[f64]) -> Result<(), DeviceError> {
+        self.check(q)?;
+        let Some(k) = &self.controller else {
+            return Ok(());
+        };
+        let pose = ControllerKinematics::rounded(&k.pose(q));
+        let solved = k.solve(&pose, q).map_err(|e| DeviceError::PoseRefused {
+            pose,
+            detail: e.to_string(),
+        })?;
+        self.check(&solved).map_err(|e| DeviceError::PoseRefused {
+            pose,
+            detail: format!("the controller's solution: {e}"),
+        })
     }
 
     /// The wrapped arm.
@@ -69,6 +99,66 @@ impl<A: Arm> Arm for LimitedArm<A> {
     }
     fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
         self.inner.wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.check_cartesian(q)?;
+        self.inner.start_move_cartesian(q, timeout)
+    }
+    fn commanded(&self) -> Option<Vec<f64>> {
+        self.inner.commanded()
+    }
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.inner.where_pose(timeout)
+    }
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        self.inner.status(timeout)
+    }
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.reset(timeout)
+    }
+}
+
+/// An [`Arm`] whose every move goes through the controller's Cartesian command: a session run
+/// over it commands poses (`MP`) instead of joints, as a compensated path on a `cartesian` rig
+/// is measured.
+#[derive(Debug)]
+pub struct CartesianArm<A> {
+    inner: A,
+}
+
+impl<A: Arm> CartesianArm<A> {
+    /// Wraps `inner`.
+    pub fn new(inner: A) -> Self {
+        CartesianArm { inner }
+    }
+}
+
+impl<A: Arm> Arm for CartesianArm<A> {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.home(timeout)
+    }
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.set_speed(level, timeout)
+    }
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.move_cartesian(q, timeout)
+    }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.start_move_cartesian(q, timeout)
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.inner.wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.inner.start_move_cartesian(q, timeout)
     }
     fn commanded(&self) -> Option<Vec<f64>> {
         self.inner.commanded()

@@ -219,6 +219,15 @@ pub enum DeviceError {
         /// Tolerance (mm).
         tolerance_mm: f64,
     },
+    /// The controller's nominal inverse kinematics have no solution for a Cartesian target, or
+    /// its solution leaves the joint limits: refused before any byte was sent.
+    #[error("arm: refused the Cartesian move to ({:.1}, {:.1}, {:.1}) mm, pitch {:.1}°, roll {:.1}° (controller frame): {detail}; nothing was sent", pose[0], pose[1], pose[2], pose[3], pose[4])]
+    PoseRefused {
+        /// The pose as it would have been sent (mm, deg).
+        pose: [f64; 5],
+        /// Why.
+        detail: String,
+    },
     /// The device is not in a state that allows the call.
     #[error("{device}: not ready: {detail}")]
     NotReady {
@@ -254,7 +263,9 @@ impl DeviceError {
             | DeviceError::FollowingError { .. }
             | DeviceError::HeartbeatLost { .. }
             | DeviceError::PoseMismatch { .. } => DeviceErrorKind::DeviceFault,
-            DeviceError::Refused { .. } => DeviceErrorKind::Refused,
+            DeviceError::Refused { .. } | DeviceError::PoseRefused { .. } => {
+                DeviceErrorKind::Refused
+            }
             DeviceError::MissedTouch { .. } => DeviceErrorKind::Measurement,
             DeviceError::ResetNotSafe { .. } | DeviceError::NotReady { .. } => {
                 DeviceErrorKind::NotReady
@@ -334,6 +345,28 @@ pub trait Arm: Send {
     /// [`DeviceError::Timeout`] when the move's own timeout has run out. Default: done.
     fn wait_moved(&mut self, _slice: Duration) -> Result<bool, DeviceError> {
         Ok(true)
+    }
+    /// Starts a Cartesian move to joints `q` (rad): the controller is sent the nominal pose of
+    /// `q` in its own frame (`MP` on the Movemaster, 0.1 mm / 0.1°) and solves it with its own
+    /// nominal inverse kinematics; [`Arm::wait_moved`] awaits the end. Returns the joints the
+    /// controller lands on (before its servo rounding). Default: refused, the controller has
+    /// no Cartesian command (a [`DeviceError::Config`] on `arm.command_path`).
+    fn start_move_cartesian(
+        &mut self,
+        _q: &[f64],
+        _timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        Err(DeviceError::Config {
+            key: "arm.command_path".into(),
+            reason: "this arm's controller has no Cartesian command: use command_path = \"joint\""
+                .into(),
+        })
+    }
+    /// [`Arm::start_move_cartesian`] and its wait in one piece.
+    fn move_cartesian(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        let done = self.start_move_cartesian(q, timeout)?;
+        while !self.wait_moved(timeout)? {}
+        Ok(done)
     }
     /// The joint values last commanded (rad); `None` before homing or after a hardware error.
     fn commanded(&self) -> Option<Vec<f64>>;
@@ -446,6 +479,16 @@ impl<A: Arm + ?Sized> Arm for Box<A> {
     }
     fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
         (**self).wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        (**self).start_move_cartesian(q, timeout)
+    }
+    fn move_cartesian(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        (**self).move_cartesian(q, timeout)
     }
     fn commanded(&self) -> Option<Vec<f64>> {
         (**self).commanded()

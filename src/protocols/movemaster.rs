@@ -14,6 +14,7 @@
 //! | `SP n[,H\|L]` | speed 0..=9, optional acceleration H/L | `SP 5\r`, `SP 5,H\r` |
 //! | `MJ a1,..,a5` | relative joint move in degrees | `MJ +10.0,-5.5,+0.0,+0.0,+0.0\r` |
 //! | `DJ j,a` | relative move of joint j (1..=5) by a degrees | `DJ 2,+10.0\r` |
+//! | `MP x,y,z,p,r` | move to a Cartesian pose (mm, degrees) in the controller's frame, solved by the controller's own nominal inverse kinematics | `MP +250.0,+0.0,+400.0,-90.0,+0.0\r` |
 //! | `WH` | where: read the Cartesian pose | `WH\r` |
 //! | `ER` | read the error status | `ER\r` |
 //! | `RS` | reset the error mode | `RS\r` |
@@ -28,7 +29,8 @@
 //! trailing zeros (`10.50`), no decimal point (`10`), a bare leading or
 //! trailing point (`.5`, `5.`), no space or several spaces after the
 //! mnemonic and spaces around the commas. Mnemonics are upper case. `MJ`
-//! requires all five values.
+//! and `MP` require all five values. `MP` values are written with one decimal
+//! (0.1 mm, 0.1°) by [`Command::move_pose`], the controller's resolution.
 //!
 //! # Replies
 //! `WH` answers `x,y,z,pitch,roll` (mm and degrees), e.g.
@@ -76,7 +78,7 @@ pub enum MovemasterError {
     MissingTerminator,
     /// The mnemonic is not one of the supported commands.
     #[error(
-        "unknown or unsupported Movemaster command {mnemonic:?}; supported: NT SP MJ DJ WH ER RS"
+        "unknown or unsupported Movemaster command {mnemonic:?}; supported: NT SP MJ DJ MP WH ER RS"
     )]
     UnknownCommand {
         /// The first two characters of the line (or the whole line if shorter).
@@ -454,6 +456,9 @@ pub enum Command {
         /// Increment in degrees.
         angle: Decimal,
     },
+    /// `MP x,y,z,p,r`: absolute Cartesian move to x, y, z (mm), pitch, roll (deg) in the
+    /// controller's frame, solved by the controller's nominal inverse kinematics.
+    MovePose([Decimal; 5]),
     /// `WH`: request the current Cartesian pose.
     Where,
     /// `ER`: request the error status.
@@ -463,6 +468,17 @@ pub enum Command {
 }
 
 impl Command {
+    /// `MP` to the pose `[x, y, z, pitch, roll]` (mm, deg), each rounded to one decimal
+    /// (0.1 mm, 0.1°: the controller's resolution), half away from zero.
+    pub fn move_pose(pose: &[f64; 5]) -> Result<Command, MovemasterError> {
+        let res = Resolution::default();
+        let mut values = [Decimal::zero(res); 5];
+        for (slot, v) in values.iter_mut().zip(pose) {
+            *slot = Decimal::from_f64(*v, res)?;
+        }
+        Ok(Command::MovePose(values))
+    }
+
     /// The exact bytes of the command, CR included (see the module doc for the format).
     pub fn encode(&self) -> Vec<u8> {
         let mut out = Vec::with_capacity(48);
@@ -488,6 +504,15 @@ impl Command {
             Command::MoveJoint { joint, angle } => {
                 out.extend_from_slice(format!("DJ {},", joint.get()).as_bytes());
                 angle.write_to(&mut out);
+            }
+            Command::MovePose(values) => {
+                out.extend_from_slice(b"MP ");
+                for (i, v) in values.iter().enumerate() {
+                    if i > 0 {
+                        out.push(b',');
+                    }
+                    v.write_to(&mut out);
+                }
             }
             Command::Where => out.extend_from_slice(b"WH"),
             Command::ErrorRead => out.extend_from_slice(b"ER"),
@@ -565,6 +590,21 @@ impl Command {
                     *slot = Decimal::parse(f, "MJ", i)?;
                 }
                 Ok(Command::MoveJoints(angles))
+            }
+            b"MP" => {
+                let fields = split_fields(args);
+                if fields.len() != 5 {
+                    return Err(MovemasterError::WrongFieldCount {
+                        what: "MP",
+                        expected: 5,
+                        found: fields.len(),
+                    });
+                }
+                let mut values = [Decimal::zero(Resolution::default()); 5];
+                for (i, (slot, f)) in values.iter_mut().zip(&fields).enumerate() {
+                    *slot = Decimal::parse(f, "MP", i)?;
+                }
+                Ok(Command::MovePose(values))
             }
             b"DJ" => {
                 let fields = split_fields(args);

@@ -127,6 +127,14 @@ pub struct ArmConfig {
     pub sim_joint_speed_deg_s: f64,
     /// Emulator: reply latency of the controller (ms).
     pub sim_reply_ms: f64,
+    /// How compensated moves reach the controller: `joint` (`MJ`, the default) or `cartesian`
+    /// (`MP`, through the controller's own nominal inverse kinematics).
+    pub command_path: crate::rig::controller::CommandPath,
+    /// The controller's Cartesian frame (`MP`, `WH`) relative to the world of the rig's
+    /// kinematics: world = Rz(yaw) · controller + origin.
+    pub controller_frame: crate::rig::controller::ControllerFrame,
+    /// Emulator: the joint servo resolution (deg) a Cartesian move's solution is rounded to.
+    pub sim_servo_resolution_deg: f64,
 }
 
 impl Default for ArmConfig {
@@ -142,6 +150,9 @@ impl Default for ArmConfig {
             where_tolerance_mm: 1.0,
             sim_joint_speed_deg_s: 60.0,
             sim_reply_ms: 5.0,
+            command_path: crate::rig::controller::CommandPath::Joint,
+            controller_frame: crate::rig::controller::ControllerFrame::default(),
+            sim_servo_resolution_deg: 0.001,
         }
     }
 }
@@ -324,6 +335,13 @@ impl DevicesConfig {
         non_negative("arm.where_tolerance_mm", a.where_tolerance_mm)?;
         positive("arm.sim_joint_speed_deg_s", a.sim_joint_speed_deg_s)?;
         non_negative("arm.sim_reply_ms", a.sim_reply_ms)?;
+        non_negative("arm.sim_servo_resolution_deg", a.sim_servo_resolution_deg)?;
+        if !a.controller_frame.is_finite() {
+            return Err(bad(
+                "arm.controller_frame",
+                "origin_mm and yaw_deg must be finite",
+            ));
+        }
 
         let t = &self.table;
         transport("table.transport", &t.transport, true)?;

@@ -26,6 +26,7 @@
 //! The `[devices]` section (how each device is reached, and the numbers its driver, emulator
 //! and the session's procedures need) is [`devices::DevicesConfig`].
 
+pub mod controller;
 pub mod devices;
 
 use crate::kinematics::{JointKind, JointSpec, LinkParams, ParamId, SerialChain, Transform};

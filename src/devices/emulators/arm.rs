@@ -1,5 +1,11 @@
-//! Emulated Movemaster controller (RV-M2): `NT`, `SP`, `MJ`, `DJ`, `WH`, `ER`, `RS`, one
+//! Emulated Movemaster controller (RV-M2): `NT`, `SP`, `MJ`, `DJ`, `MP`, `WH`, `ER`, `RS`, one
 //! CR-terminated line each, executed one after the other.
+//!
+//! `MP x,y,z,p,r` is solved as the controller does: its own nominal inverse kinematics in its
+//! own frame (the rig file's `controller_frame`; pose convention in
+//! [`crate::rig::controller`]), from the joints it is at; the pose arrives rounded to 0.1 mm /
+//! 0.1° (the wire's one decimal) and the solution is rounded to the joint servo resolution
+//! (`sim_servo_resolution_deg`). No solution, or one outside the joint limits: error mode II.
 //!
 //! Joint angles on the wire are controller degrees (controller angle = sign · q + offset, from
 //! the rig file). A motion takes the largest joint increment divided by the joint speed of the
@@ -8,7 +14,7 @@
 //! controller in error mode II (position/format); `RS` clears mode II only. In error mode the
 //! controller ignores every command but `ER`, `WH` and `RS`. `WH` answers the nominal
 //! Cartesian pose of the commanded joints (x, y, z in the rig's world frame, pitch = elevation of
-//! the pin, roll = q5), as the controller computes it from its encoders — not the true pose.
+//! the pin, roll = q4: [`crate::rig::controller`]), as the controller computes it from its encoders — not the true pose.
 
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
@@ -17,6 +23,7 @@ use std::time::Duration;
 use crate::devices::emulators::{lock, ByteEmulator, SharedPhysics};
 use crate::kinematics::{ErrorParams, Robot, SerialChain};
 use crate::protocols::movemaster::{Command, ErrorStatus, LineFramer, WhereReply};
+use crate::rig::controller::{round_joints, ControllerKinematics};
 use crate::rig::devices::ArmConfig;
 use crate::rig::{Instrument, Rig};
 
@@ -42,6 +49,7 @@ pub type ArmFaultHandle = Arc<Mutex<ArmFaults>>;
 #[derive(Debug)]
 pub struct ArmEmulator {
     chain: SerialChain,
+    controller: Option<ControllerKinematics>,
     pin_axis: nalgebra::Vector3<f64>,
     cfg: ArmConfig,
     limits: Vec<(f64, f64)>,
@@ -73,8 +81,11 @@ impl ArmEmulator {
             Instrument::TablePanel(t) => t.pin_axis,
             _ => nalgebra::Vector3::x(),
         };
+        let controller =
+            ControllerKinematics::new(rig.chain.clone(), cfg.controller_frame, pin_axis).ok();
         let mut e = ArmEmulator {
             chain: rig.chain.clone(),
+            controller,
             pin_axis,
             cfg: cfg.clone(),
             limits,
@@ -161,16 +172,58 @@ impl ArmEmulator {
 
     fn where_reply(&self) -> WhereReply {
         let q = self.q_rad(&self.angles);
-        let e = ErrorParams::zeros(self.chain.layout());
-        let p = self.chain.position(&q, &e);
-        let pin = self.chain.tool_pose(&q, &e).rotation * self.pin_axis;
+        let [x, y, z, pitch, roll] = match &self.controller {
+            Some(k) => k.pose(&q),
+            None => {
+                let e = ErrorParams::zeros(self.chain.layout());
+                let p = self.chain.position(&q, &e);
+                let pin = self.chain.tool_pose(&q, &e).rotation * self.pin_axis;
+                [
+                    p.x,
+                    p.y,
+                    p.z,
+                    pin.z.clamp(-1.0, 1.0).asin().to_degrees(),
+                    q.get(3).copied().unwrap_or(0.0).to_degrees(),
+                ]
+            }
+        };
         WhereReply {
-            x: p.x,
-            y: p.y,
-            z: p.z,
-            pitch: pin.z.clamp(-1.0, 1.0).asin().to_degrees(),
-            roll: q.get(4).copied().unwrap_or(0.0).to_degrees(),
+            x,
+            y,
+            z,
+            pitch,
+            roll,
         }
+    }
+
+    /// The controller angles an `MP` pose lands on, `None` when its kinematics find none.
+    fn solve_pose(&self, pose: &[f64; 5]) -> Option<[f64; 5]> {
+        let k = self.controller.as_ref()?;
+        let seed = self.q_rad(&self.angles);
+        let q = round_joints(
+            &k.solve(pose, &seed).ok()?,
+            self.cfg.sim_servo_resolution_deg,
+        );
+        let mut out = [0.0; 5];
+        for (j, slot) in out.iter_mut().enumerate() {
+            let s = self.cfg.sign.get(j).copied().unwrap_or(1.0);
+            let o = self.cfg.offset_deg.get(j).copied().unwrap_or(0.0);
+            *slot = s * q.get(j).copied().unwrap_or(0.0).to_degrees() + o;
+        }
+        Some(out)
+    }
+
+    /// Takes the injected error mode of the next move, if any; true when one was set.
+    fn injected_error(&mut self) -> bool {
+        let Some(code) = lock(&self.faults).error_on_next_move.take() else {
+            return false;
+        };
+        self.error = if code == 1 {
+            ErrorStatus::Hardware
+        } else {
+            ErrorStatus::Position
+        };
+        true
     }
 
     fn line(&mut self, line: &[u8], now: Duration) {
@@ -213,6 +266,15 @@ impl ArmEmulator {
                     *a += d.to_f64();
                 }
                 self.move_to(t, now);
+            }
+            Command::MovePose(values) => {
+                if self.injected_error() {
+                    return;
+                }
+                match self.solve_pose(&values.map(|v| v.to_f64())) {
+                    Some(t) => self.move_to(t, now),
+                    None => self.error = ErrorStatus::Position,
+                }
             }
             Command::MoveJoint { joint, angle } => {
                 if let Some(code) = lock(&self.faults).error_on_next_move.take() {
