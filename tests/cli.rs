@@ -57,27 +57,21 @@ fn summary_figure(summary: &str, path: &str, model: &str) -> (f64, f64) {
 #[test]
 fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
     let dir = tempfile::tempdir().unwrap();
-    let (ok, out, err) = rigcal(&[
-        "demo",
-        "--out",
-        s(dir.path()),
-        "--points",
-        "600",
-        "--rig-points",
-        "120",
-    ]);
+    let (ok, out, err) = rigcal(&["demo", "--out", s(dir.path()), "--rig-points", "120"]);
     assert!(ok, "{err}");
     for f in [
-        "paper/measurements.csv",
-        "paper/journal.json",
-        "paper-model.json",
-        "paper-plots/Fig__6_joint_path-errors.svg",
+        "paper-fig6-model.json",
+        "paper-fig7-model.json",
+        "paper-fig8-model.json",
+        "paper-fig6-cmac-model.json",
+        "paper-plots/paper-fig6-model/Fig__6_joint_path-errors.svg",
         "rig/measurements.csv",
         "rig/plan.dropped.csv",
         "rig-model.json",
         "rig-diagnosis.json",
         "rig-path-compensated/measurements.csv",
         "summary.txt",
+        "summary.json",
     ] {
         assert!(dir.path().join(f).exists(), "{f} missing; output:\n{out}");
     }
@@ -87,7 +81,7 @@ fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
     let (_, conventional_max) = summary_figure(&summary, "Fig. 6 joint path", "conventional");
     assert!(uncal_mean > 0.5, "{summary}");
     assert!(
-        fcmac_max < 0.02 && fcmac_max < conventional_max,
+        fcmac_max < 0.1 && fcmac_max < conventional_max && conventional_max > 0.1,
         "{summary}"
     );
     // The rig path: every point measured twice; the resolution floor is reported.
