@@ -432,7 +432,6 @@ fn where_differs(scenario: &Scenario, rows: &[Row]) -> Vec<String> {
         let per: Vec<f64> = (0..4)
             .map(|b| rms(rows.iter().filter(|r| quarter(r) == b).map(|r| r.d.norm())))
             .collect();
-        let _ = per.iter().position(|_| true);
         out.push(format!(
             "by time quarter of the session (0–{t_max:.0} s): RMS {} mm",
             per.iter()
