@@ -3,7 +3,9 @@
 //! approach, [`crate::compensation::hybrid::compensate_path`]).
 
 use crate::compensation::hybrid::{compensate_path, path_csv, Approach, HybridArm, HybridOptions};
-use crate::compensation::{compensate_targets, with_pose_columns, CompensationOptions, TargetError};
+use crate::compensation::{
+    compensate_targets, with_pose_columns, CompensationOptions, TargetError,
+};
 use crate::kinematics::Robot;
 use crate::model::{LoadedModel, ModelFile};
 use crate::recording::{commands_csv, read_targets, Target};
@@ -109,7 +111,11 @@ fn plain_commands(
         chain.joints(),
         commands.iter().map(|c| c.command.as_slice()),
     );
-    Ok((text, worst, commands.into_iter().map(|c| c.command).collect()))
+    Ok((
+        text,
+        worst,
+        commands.into_iter().map(|c| c.command).collect(),
+    ))
 }
 
 fn hybrid_commands(

@@ -3,11 +3,11 @@
 //! named effects ([`crate::twin::model_with_named_effects`]).
 
 use super::{RecordingArg, RigArg};
-use crate::world::Scenario;
 use crate::diagnosis::{diagnose, Options, Report};
 use crate::identification::sessions::{physics_heldout, without_rows, PerSession};
 use crate::recording::Recording;
 use crate::rig::Rig;
+use crate::world::Scenario;
 use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
 
