@@ -69,45 +69,8 @@ pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
     let scenario = load_scenario(&rig, &a.rig, a.sim.as_deref(), a.sim_seed)?;
     let seed = a.seed.or(scenario.as_ref().map(|s| s.seed)).unwrap_or(1);
-    let plan_path = a.out.join("plan.csv");
-    if !a.resume && a.out.join(crate::session::run::CSV_FILE).exists() {
-        // Before planning: a refused run must not touch the session's files.
-        bail!(
-            "{} already holds a recording; resume it with --resume or choose another --out",
-            a.out.display()
-        );
-    }
-    if a.resume && !a.out.join(crate::session::journal::JOURNAL_FILE).exists() {
-        bail!(
-            "{}: no session to resume here (no {}); start one without --resume",
-            a.out.display(),
-            crate::session::journal::JOURNAL_FILE
-        );
-    }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    if !a.resume {
-        let points = match (&a.plan, a.points) {
-            (Some(p), None) => read_plan(p, &rig)?,
-            (None, Some(n)) => {
-                let p = plan(
-                    &rig,
-                    &super::plan::options(n, a.regions, a.reference_every, seed),
-                )?;
-                super::plan::report_dropped(&rig, &p, &plan_path)?;
-                p.points
-            }
-            _ => bail!("give --plan FILE or --points N (or --resume to continue a session)"),
-        };
-        write_plan(&plan_path, &rig, &points)?;
-    } else if a.plan.is_some() || a.points.is_some() {
-        eprintln!(
-            "note: --resume continues the plan in {}; --plan/--points are ignored",
-            plan_path.display()
-        );
-    }
-    // Both a fresh and a resumed run measure the plan as read back from the file.
-    let points = read_plan(&plan_path, &rig)
-        .with_context(|| format!("reading the session plan {}", plan_path.display()))?;
+    check_session_dir(&a)?;
+    let points = session_plan(&a, &rig, seed)?;
     // The registration step measures its own poses first (none when reused, on a point-sensor
     // rig, or on a resume, which estimates the whole plan again).
     let registration = if a.registration_from.is_none() && !a.resume {
@@ -122,7 +85,6 @@ pub fn run(a: Args) -> Result<()> {
         &ContactSettings::of(&rig),
     );
     println!("{}", super::plan::describe(&est));
-
     let clock = if a.real_time {
         SimClock::Real
     } else {
@@ -130,6 +92,76 @@ pub fn run(a: Args) -> Result<()> {
     };
     let opened = open_rig(&rig, scenario.as_ref(), clock)?;
     let virtual_clock = opened.devices.clock.is_virtual();
+    let opts = session_options(
+        &a,
+        &rig,
+        scenario.as_ref(),
+        seed,
+        points.len(),
+        virtual_clock,
+    )?;
+    let progress = Progress::auto(points.len());
+    let report = run_session(&rig, opened, &points, opts, &progress)?;
+    print_report(&a.out, &report, virtual_clock);
+    Ok(())
+}
+
+/// Refuses a fresh session over a recording, and a resume where there is no session.
+fn check_session_dir(a: &Args) -> Result<()> {
+    if !a.resume && a.out.join(crate::session::run::CSV_FILE).exists() {
+        // Before planning: a refused run must not touch the session's files.
+        bail!(
+            "{} already holds a recording; resume it with --resume or choose another --out",
+            a.out.display()
+        );
+    }
+    if a.resume && !a.out.join(crate::session::journal::JOURNAL_FILE).exists() {
+        bail!(
+            "{}: no session to resume here (no {}); start one without --resume",
+            a.out.display(),
+            crate::session::journal::JOURNAL_FILE
+        );
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))
+}
+
+/// The session's plan: made (or read from `--plan`) and written on a fresh run, then, on a
+/// fresh and a resumed run alike, read back from the session's `plan.csv`.
+fn session_plan(a: &Args, rig: &Rig, seed: u64) -> Result<Vec<crate::session::PlannedPoint>> {
+    let plan_path = a.out.join("plan.csv");
+    if !a.resume {
+        let points = match (&a.plan, a.points) {
+            (Some(p), None) => read_plan(p, rig)?,
+            (None, Some(n)) => {
+                let p = plan(
+                    rig,
+                    &super::plan::options(n, a.regions, a.reference_every, seed),
+                )?;
+                super::plan::report_dropped(rig, &p, &plan_path)?;
+                p.points
+            }
+            _ => bail!("give --plan FILE or --points N (or --resume to continue a session)"),
+        };
+        write_plan(&plan_path, rig, &points)?;
+    } else if a.plan.is_some() || a.points.is_some() {
+        eprintln!(
+            "note: --resume continues the plan in {}; --plan/--points are ignored",
+            plan_path.display()
+        );
+    }
+    read_plan(&plan_path, rig)
+        .with_context(|| format!("reading the session plan {}", plan_path.display()))
+}
+
+/// The session's options from the command line (a reused registration read from its session).
+fn session_options(
+    a: &Args,
+    rig: &Rig,
+    scenario: Option<&crate::world::Scenario>,
+    seed: u64,
+    points: usize,
+    virtual_clock: bool,
+) -> Result<SessionOptions> {
     let mut opts = SessionOptions::new(&a.out);
     opts.resume = a.resume;
     opts.registration_points = a.registration_points;
@@ -149,10 +181,9 @@ pub fn run(a: Args) -> Result<()> {
     opts.info = SessionInfo {
         rig: Some(a.rig.display().to_string()),
         scenario: a.sim.as_ref().map(|p| p.display().to_string()),
-        seed: scenario.as_ref().map(|s| s.seed),
+        seed: scenario.map(|s| s.seed),
         notes: Some(format!(
-            "rigcal session: {} points{}",
-            points.len(),
+            "rigcal session: {points} points{}",
             if virtual_clock {
                 ", dry run on the virtual clock"
             } else {
@@ -161,11 +192,18 @@ pub fn run(a: Args) -> Result<()> {
         )),
         ..Default::default()
     };
-    let progress = Progress::auto(points.len());
-    let report = run_session(&rig, opened, &points, opts, &progress)?;
+    Ok(opts)
+}
+
+/// What `rigcal session` prints at the end.
+fn print_report(
+    out: &std::path::Path,
+    report: &crate::session::SessionReport,
+    virtual_clock: bool,
+) {
     println!(
         "session {}: {} points, {} measured{}, {} skipped, {} via rows, {} retries, {} faults cleared",
-        a.out.display(),
+        out.display(),
         report.points,
         report.ok,
         match report.resumed_at {
@@ -198,7 +236,6 @@ pub fn run(a: Args) -> Result<()> {
         },
         report.wall.as_secs_f64()
     );
-    Ok(())
 }
 
 /// The scenario of a dry run, checked against the rig in use.

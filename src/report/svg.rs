@@ -331,8 +331,12 @@ mod tests {
         assert_eq!(b.len(), 10);
         // Each bin holds 60 points: ±0.1 alternating plus the slope across the bin's width
         // (2 × 0.1 / √12), so its standard error is √(0.01 + 0.0033) / √60 ≈ 0.015.
-        for (x, m, e) in b {
-            assert!((m - 2.0 * x).abs() < 0.02, "{x} {m}");
+        // The axis is padded by 4 % each side, so the two end bins are only partly filled and
+        // their mean is not at their centre: the inner bins are checked against the line.
+        for (k, &(x, m, e)) in b.iter().enumerate() {
+            if k > 0 && k + 1 < b.len() {
+                assert!((m - 2.0 * x).abs() < 0.02, "{x} {m}");
+            }
             assert!((0.010..0.020).contains(&e), "{x} {e}");
         }
     }
