@@ -255,8 +255,8 @@ impl NormalEquations {
         for a in 0..p {
             let ca = cols[a];
             self.jtr[a] += sign * ca.dot(r);
-            for b in a..p {
-                self.jtj[(a, b)] += sign * ca.dot(&cols[b]);
+            for (b, cb) in cols.iter().enumerate().skip(a) {
+                self.jtj[(a, b)] += sign * ca.dot(cb);
             }
         }
         self.cost += sign * r.norm_squared();
@@ -605,7 +605,7 @@ fn kappa_from_normal(jtj: &DMatrix<f64>) -> Option<f64> {
         return None;
     }
     let d: Vec<f64> = (0..p).map(|c| jtj[(c, c)].sqrt()).collect();
-    if d.iter().any(|&v| !(v > 0.0) || !v.is_finite()) {
+    if d.iter().any(|&v| v.is_nan() || v <= 0.0 || !v.is_finite()) {
         return None;
     }
     let scaled = DMatrix::from_fn(p, p, |r, c| jtj[(r, c)] / (d[r] * d[c]));

@@ -218,7 +218,8 @@ impl ControllerKinematics {
             }
             r = residual(&q);
         }
-        if !(r.norm() <= 1e-6) {
+        // A NaN residual is no solution either.
+        if r.norm().is_nan() || r.norm() > 1e-6 {
             return Err(PoseError::NoSolution {
                 pose: *pose,
                 residual: r.norm(),
