@@ -220,14 +220,20 @@ pub fn mean_max_rows(path: &str, results: &[PathResult]) -> String {
     s
 }
 
-const COLOURS: [RGBColor; 6] = [
-    RGBColor(120, 120, 120),
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(148, 103, 189),
-    RGBColor(255, 127, 14),
+/// Okabe–Ito, colour-blind safe (black first: the uncalibrated curve).
+const COLOURS: [RGBColor; 7] = [
+    RGBColor(0, 0, 0),
+    RGBColor(230, 159, 0),
+    RGBColor(86, 180, 233),
+    RGBColor(0, 158, 115),
+    RGBColor(213, 94, 0),
+    RGBColor(0, 114, 178),
+    RGBColor(204, 121, 167),
 ];
+
+/// Curves whose largest and smallest positive values differ by more than this factor are
+/// drawn on a log axis, so calibrated curves are not squashed onto zero.
+const LOG_SCALE_RATIO: f64 = 20.0;
 
 fn plot_err(path: &Path, e: impl std::fmt::Display) -> PathError {
     PathError::Plot {
@@ -238,51 +244,100 @@ fn plot_err(path: &Path, e: impl std::fmt::Display) -> PathError {
 
 /// Plots the position error along the path for every model (SVG).
 pub fn plot_errors(file: &Path, title: &str, results: &[PathResult]) -> Result<(), PathError> {
-    let root = SVGBackend::new(file, (900, 480)).into_drawing_area();
+    let root = SVGBackend::new(file, (1000, 480)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| plot_err(file, e))?;
+    // The legend lives in its own strip right of the data, so it never hides a curve.
+    let (plot_area, legend_area) = root.split_horizontally(800);
     let n = results.first().map_or(1, |r| r.errors.len()).max(2);
-    let ymax = results
-        .iter()
-        .flat_map(|r| r.errors.iter())
-        .filter(|v| v.is_finite())
-        .fold(0.0f64, |a, &b| a.max(b))
-        * 1.1
-        + 1e-6;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(0f64..(n - 1) as f64, 0f64..ymax)
-        .map_err(|e| plot_err(file, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("point on the path")
-        .y_desc("position error (mm)")
-        .draw()
-        .map_err(|e| plot_err(file, e))?;
-    for (k, r) in results.iter().enumerate() {
-        let c = COLOURS[k % COLOURS.len()];
+    let positive = || {
+        results
+            .iter()
+            .flat_map(|r| r.errors.iter().copied())
+            .filter(|v| v.is_finite() && *v > 0.0)
+    };
+    let ymax = positive().fold(0.0f64, f64::max) * 1.1 + 1e-6;
+    let ymin = positive().fold(f64::INFINITY, f64::min);
+    let series = |r: &PathResult| -> Vec<(f64, f64)> {
+        r.errors
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| v.is_finite())
+            .map(|(i, &v)| (i as f64, v))
+            .collect()
+    };
+    let builder = |area| {
+        let mut b = ChartBuilder::on(area);
+        b.caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(70);
+        b
+    };
+    if ymin.is_finite() && ymax / ymin > LOG_SCALE_RATIO {
+        let lo = ymin / 1.5;
+        let mut chart = builder(&plot_area)
+            .build_cartesian_2d(0f64..(n - 1) as f64, (lo..ymax).log_scale())
+            .map_err(|e| plot_err(file, e))?;
         chart
-            .draw_series(LineSeries::new(
-                r.errors
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, v)| v.is_finite())
-                    .map(|(i, &v)| (i as f64, v)),
-                c.stroke_width(2),
-            ))
-            .map_err(|e| plot_err(file, e))?
-            .label(r.model.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
+            .configure_mesh()
+            .x_desc("point on the path")
+            .y_desc("position error (mm, log scale)")
+            .y_label_formatter(&|v| tick_label(*v))
+            .x_label_formatter(&|v| tick_label(*v))
+            .draw()
+            .map_err(|e| plot_err(file, e))?;
+        for (k, r) in results.iter().enumerate() {
+            let c = COLOURS[k % COLOURS.len()];
+            let pts = series(r).into_iter().map(|(x, y)| (x, y.max(lo)));
+            chart
+                .draw_series(LineSeries::new(pts, c.stroke_width(2)))
+                .map_err(|e| plot_err(file, e))?;
+        }
+    } else {
+        let mut chart = builder(&plot_area)
+            .build_cartesian_2d(0f64..(n - 1) as f64, 0f64..ymax)
+            .map_err(|e| plot_err(file, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("point on the path")
+            .y_desc("position error (mm)")
+            .y_label_formatter(&|v| tick_label(*v))
+            .x_label_formatter(&|v| tick_label(*v))
+            .draw()
+            .map_err(|e| plot_err(file, e))?;
+        for (k, r) in results.iter().enumerate() {
+            let c = COLOURS[k % COLOURS.len()];
+            chart
+                .draw_series(LineSeries::new(series(r), c.stroke_width(2)))
+                .map_err(|e| plot_err(file, e))?;
+        }
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
+    draw_legend(&legend_area, results.iter().map(|r| r.model.as_str()))
         .map_err(|e| plot_err(file, e))?;
     root.present().map_err(|e| plot_err(file, e))
+}
+
+/// A tick label without "-0" and without trailing zeros.
+fn tick_label(v: f64) -> String {
+    crate::report::svg::tick(v)
+}
+
+/// One line and name per curve, top to bottom, in the strip beside the chart.
+fn draw_legend<'a, DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    names: impl Iterator<Item = &'a str>,
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    for (k, name) in names.enumerate() {
+        let c = COLOURS[k % COLOURS.len()];
+        let y = 60 + 24 * k as i32;
+        area.draw(&PathElement::new(vec![(8, y), (34, y)], c.stroke_width(3)))?;
+        area.draw(&Text::new(
+            name.to_string(),
+            (42, y - 8),
+            ("sans-serif", 15),
+        ))?;
+    }
+    Ok(())
 }
 
 /// Plots traced CEPs along the path, one panel per CEP (SVG).
@@ -441,4 +496,40 @@ pub fn plot_log_curves(
         }
     }
     root.present().map_err(|e| plot_err(file, e))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curve(model: &str, scale: f64) -> PathResult {
+        PathResult {
+            model: model.into(),
+            errors: (0..50)
+                .map(|i| scale * (1.0 + (i as f64 * 0.2).sin().abs()))
+                .collect(),
+            traces: Vec::new(),
+            failures: 0,
+        }
+    }
+
+    #[test]
+    fn curves_orders_of_magnitude_apart_get_a_log_axis_and_a_legend_beside_the_data() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("errors.svg");
+        plot_errors(
+            &file,
+            "t",
+            &[curve("uncalibrated", 1.0), curve("fcmac", 0.005)],
+        )
+        .unwrap();
+        let svg = std::fs::read_to_string(&file).unwrap();
+        assert!(svg.contains("log scale"), "{svg}");
+        assert!(svg.contains("fcmac") && svg.contains("uncalibrated"));
+        assert!(!svg.contains(">-0<"));
+        // Similar curves stay on a linear axis.
+        plot_errors(&file, "t", &[curve("a", 1.0), curve("b", 0.5)]).unwrap();
+        let svg = std::fs::read_to_string(&file).unwrap();
+        assert!(!svg.contains("log scale") && svg.contains("position error (mm)"));
+    }
 }

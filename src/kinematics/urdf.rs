@@ -409,7 +409,13 @@ pub fn rig_toml(names: &RigFileNames<'_>, c: &UrdfChain, coms: &[LinkCom]) -> St
         s,
         "# Five-parameter convention A = Rz(θ)·Tz(d)·Tx(a)·Rx(α)·Ry(β); mm and degrees."
     );
-    let _ = writeln!(s, "name = \"{name}\"\ndescription = \"{name} from URDF ({base} to {tip})\"\n\n[robot]\nname = \"{name}\"");
+    let _ = writeln!(
+        s,
+        "name = {}\ndescription = {}\n\n[robot]\nname = {}",
+        toml_string(name),
+        toml_string(&format!("{name} from URDF ({base} to {tip})")),
+        toml_string(name)
+    );
     let _ = writeln!(s, "base = {}", pose_fields(&c.base));
     let _ = writeln!(s, "tool = {}", pose_fields(&c.tool));
     for (i, j) in c.joints.iter().enumerate() {
@@ -419,10 +425,16 @@ pub fn rig_toml(names: &RigFileNames<'_>, c: &UrdfChain, coms: &[LinkCom]) -> St
     s
 }
 
+/// `text` as a TOML string, quoted and escaped by the serializer (a URDF name may hold quotes
+/// or backslashes).
+fn toml_string(text: &str) -> String {
+    toml::Value::String(text.to_string()).to_string()
+}
+
 /// One `[[robot.joints]]` table.
 fn joint_toml(s: &mut String, j: &UrdfJoint, com: LinkCom) {
     let l = &j.link;
-    let _ = writeln!(s, "\n[[robot.joints]]\nname = \"{}\"", j.name);
+    let _ = writeln!(s, "\n[[robot.joints]]\nname = {}", toml_string(&j.name));
     match j.kind {
         JointKind::Revolute => {
             let _ = writeln!(
@@ -494,6 +506,22 @@ mod tests {
             tool: Isometry3::identity(),
             masses: vec![None, Some((2.0, Vector3::new(225.0, 0.0, 200.0)))],
         }
+    }
+
+    #[test]
+    fn names_with_quotes_and_backslashes_read_back() {
+        let mut chain = two_joints();
+        chain.joints[1].name = "j\"1\\x".into();
+        let names = RigFileNames {
+            name: "my \"arm\"",
+            source: "two.urdf",
+            base: "base",
+            tip: "tip",
+        };
+        let text = rig_toml(&names, &chain, &[]);
+        let v: toml::Value = toml::from_str(&text).expect("valid TOML");
+        assert_eq!(v["name"].as_str(), Some("my \"arm\""));
+        assert_eq!(v["robot"]["joints"][1]["name"].as_str(), Some("j\"1\\x"));
     }
 
     #[test]
