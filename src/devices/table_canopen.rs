@@ -245,6 +245,23 @@ impl<B: CanBus> CanOpenTable<B> {
         Ok(())
     }
 
+    /// Reads 0x1000 and refuses a node that is not a CiA 402 drive: enabling it with 402's
+    /// controlword would mean anything to another device.
+    fn check_device_type(&mut self, k: usize) -> Result<(), DeviceError> {
+        let device_type = self.read(k, od::DEVICE_TYPE)?.to_u32();
+        if device_type & 0xFFFF == od::PROFILE_CIA402 {
+            return Ok(());
+        }
+        Err(DeviceError::Protocol {
+            device: DeviceName::Table,
+            request: format!("device type (0x1000) of node {}", self.nodes[k].get()),
+            detail: format!(
+                "{device_type:#010x}: profile {} in the low word, not a CiA 402 drive (402 = 0x0192); check the node IDs in [devices.table]",
+                device_type & 0xFFFF
+            ),
+        })
+    }
+
     fn statusword(&mut self, k: usize) -> Result<Statusword, DeviceError> {
         Ok(Statusword(self.read(k, od::STATUSWORD)?.to_u32() as u16))
     }
@@ -442,6 +459,9 @@ impl<B: CanBus> Table for CanOpenTable<B> {
                 .encode(),
             )
             .map_err(Self::transport)?;
+        for k in 0..3 {
+            self.check_device_type(k)?;
+        }
         for k in 0..3 {
             self.write(
                 k,

@@ -1048,6 +1048,14 @@ impl CanOpenMessage {
 
 /// Object dictionary indices used by rigcal (CiA 301 / CiA 402).
 pub mod od {
+    /// 0x1000 device type (UNSIGNED32): the device profile number in the low word (402 for a
+    /// drive), additional information in the high word.
+    pub const DEVICE_TYPE: u16 = 0x1000;
+    /// The device profile number of a CiA 402 drive, as 0x1000's low word.
+    pub const PROFILE_CIA402: u32 = 402;
+    /// 0x1018 identity (RECORD): sub 0 the highest sub-index (4), 1 vendor ID, 2 product code,
+    /// 3 revision number, 4 serial number (each UNSIGNED32).
+    pub const IDENTITY: u16 = 0x1018;
     /// 0x1001 error register (UNSIGNED8).
     pub const ERROR_REGISTER: u16 = 0x1001;
     /// 0x1016 consumer heartbeat time (array of UNSIGNED32).

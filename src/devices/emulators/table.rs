@@ -2,8 +2,9 @@
 //!
 //! Each drive answers expedited SDOs (0x6040 controlword, 0x6041 statusword, 0x6060/0x6061
 //! modes, 0x607A target, 0x6064 actual position, 0x6081/0x6083/0x6084 profile, 0x1017 heartbeat
-//! period, 0x603F error code, 0x1001 error register; anything else aborts with "object does not
-//! exist"), obeys NMT, produces heartbeats at its 0x1017 period, and sends EMCY on a fault.
+//! period, 0x603F error code, and the mandatory CiA 301 objects 0x1000 device type (a 402 servo
+//! drive, 0x00020192), 0x1001 error register and 0x1018 identity (sub 0–4); anything else aborts
+//! with "object does not exist"), obeys NMT, produces heartbeats at its 0x1017 period, and sends EMCY on a fault.
 //! Requests are processed one bus latency after they arrive, and the response carries the state
 //! at that moment — so a position read returns where the axis is when the drive answers.
 //!
@@ -297,6 +298,8 @@ impl TableEmulator {
                     od::PRODUCER_HEARTBEAT_TIME => Some(SdoData::from_u16(d.hb_ms)),
                     od::ERROR_CODE => Some(SdoData::from_u16(d.error_code)),
                     od::ERROR_REGISTER => Some(SdoData::from_u8(u8::from(d.error_code != 0))),
+                    od::DEVICE_TYPE => Some(SdoData::from_u32(EMULATED_DEVICE_TYPE)),
+                    od::IDENTITY => identity(sub, node),
                     _ => None,
                 };
                 match data {
@@ -479,5 +482,64 @@ impl FrameEmulator for TableEmulator {
             .filter_map(|d| d.fault_at.map(|f| f.0))
             .min();
         [req, out, hb, fault].into_iter().flatten().min()
+    }
+}
+
+/// 0x1000 of every emulated drive: a CiA 402 servo drive (additional information 0x0002 in the
+/// high word, profile 402 = 0x0192 in the low word).
+pub const EMULATED_DEVICE_TYPE: u32 = 0x0002_0192;
+
+/// Vendor ID the emulated drives report in 0x1018 (not a CiA-assigned ID: no real vendor).
+pub const EMULATED_VENDOR_ID: u32 = 0x0000_0000;
+
+/// Product code the emulated drives report in 0x1018.
+pub const EMULATED_PRODUCT_CODE: u32 = 0x0000_0402;
+
+/// Revision number the emulated drives report in 0x1018 (major 1, minor 0).
+pub const EMULATED_REVISION: u32 = 0x0001_0000;
+
+/// Sub-index `sub` of the identity object 0x1018 of drive `node` (the serial number is the node
+/// ID); `None` for a sub-index the record does not have.
+fn identity(sub: u8, node: NodeId) -> Option<SdoData> {
+    match sub {
+        0 => Some(SdoData::from_u8(4)),
+        1 => Some(SdoData::from_u32(EMULATED_VENDOR_ID)),
+        2 => Some(SdoData::from_u32(EMULATED_PRODUCT_CODE)),
+        3 => Some(SdoData::from_u32(EMULATED_REVISION)),
+        4 => Some(SdoData::from_u32(u32::from(node.get()))),
+        _ => None,
+    }
+}
+
+#[cfg(test)]
+mod mandatory_objects {
+    use super::*;
+    use crate::devices::emulators::TableTruth;
+
+    fn upload(e: &mut TableEmulator, node: NodeId, index: u16, sub: u8) -> Option<u32> {
+        match e.sdo(node, SdoRequest::Upload { index, sub }, Duration::ZERO) {
+            SdoResponse::UploadData { data, .. } => Some(data.to_u32()),
+            _ => None,
+        }
+    }
+
+    #[test]
+    fn every_drive_answers_device_type_error_register_and_identity() {
+        let cfg = TableConfig::default();
+        let truth: SharedTable = Arc::new(Mutex::new(TableTruth::at([0.0; 3])));
+        let mut e = TableEmulator::new(&cfg, truth);
+        for id in cfg.node_ids {
+            let node = NodeId::new(id).unwrap();
+            let device_type = upload(&mut e, node, od::DEVICE_TYPE, 0).unwrap();
+            assert_eq!(device_type & 0xFFFF, 0x0192, "node {id}: {device_type:#x}");
+            assert_eq!(upload(&mut e, node, od::ERROR_REGISTER, 0), Some(0));
+            assert_eq!(upload(&mut e, node, od::IDENTITY, 0), Some(4));
+            assert_eq!(
+                upload(&mut e, node, od::IDENTITY, 2),
+                Some(EMULATED_PRODUCT_CODE)
+            );
+            assert_eq!(upload(&mut e, node, od::IDENTITY, 4), Some(u32::from(id)));
+            assert_eq!(upload(&mut e, node, od::IDENTITY, 5), None);
+        }
     }
 }
