@@ -104,26 +104,16 @@ fn evaluate_effects(
         ..Default::default()
     };
     for path in paths {
-        let targets: Vec<(u64, crate::recording::Target)> = path
-            .points
-            .iter()
-            .enumerate()
-            .map(|(k, q)| (k as u64 + 1, crate::recording::Target::Joints(q.clone())))
-            .collect();
         println!(
             "{}: true error of the compensated moves, in the path's order (backlash from it)",
             path.name
         );
-        for with in [false, true] {
-            let name = if with {
-                "with effects"
-            } else {
-                "geometry only"
-            };
-            let r = crate::twin::hybrid::compensated_errors(
-                &loaded, with, &world, &targets, &opts, name,
-            )
-            .map_err(|e| anyhow::Error::new(e.source).context(format!("path point {}", e.line)))?;
+        let (geometry, effects) =
+            crate::twin::hybrid::geometry_vs_effects(&loaded, &world, &path.points, &opts)
+                .map_err(|e| {
+                    anyhow::Error::new(e.source).context(format!("path point {}", e.line))
+                })?;
+        for r in [geometry, effects] {
             println!(
                 "  {:<14} mean {:.4} mm, max {:.4} mm",
                 r.model,

@@ -103,3 +103,22 @@ pub fn compensated_errors(
         name,
     ))
 }
+
+/// A path's joint targets (each numbered from 1, in order) compensated with the model's geometry
+/// alone and with its effects, and the true errors of both in `world`: (geometry only, with
+/// effects).
+pub fn geometry_vs_effects(
+    model: &LoadedModel,
+    world: &World,
+    path: &[Vec<f64>],
+    opts: &HybridOptions,
+) -> Result<(PathErrors, PathErrors), TargetError> {
+    let targets: Vec<(u64, Target)> = path
+        .iter()
+        .enumerate()
+        .map(|(k, q)| (k as u64 + 1, Target::Joints(q.clone())))
+        .collect();
+    let geometry = compensated_errors(model, false, world, &targets, opts, "geometry only")?;
+    let effects = compensated_errors(model, true, world, &targets, opts, "with effects")?;
+    Ok((geometry, effects))
+}
