@@ -8,6 +8,7 @@
 //! | module | holds |
 //! |---|---|
 //! | [`stats`] | distribution functions (F, χ²₃, erfc) and robust scales (median, MAD) |
+//! | [`basis`] | smooth function bases (cubic B-splines, harmonics, Gaussian radial functions) linear in their coefficients |
 //! | [`kinematics`] | the [`kinematics::Robot`] trait (pose map and measured point), serial chains, error parameters, IK, URDF |
 //! | [`rig`] | rig files: chain, limits, calibration settings, instrument, the `[devices]` settings |
 //! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
@@ -33,6 +34,7 @@
 #![warn(missing_docs)]
 #![deny(clippy::unwrap_used)]
 
+pub mod basis;
 pub mod calibration;
 pub mod cli;
 pub mod compensation;

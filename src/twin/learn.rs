@@ -17,8 +17,11 @@
 //!    by least squares on d over the fitted rows, so what the geometry absorbs is counted once.
 //! 5. **Write** the updated scenario ([`crate::world::write`]): the old file's settings and
 //!    effects, the geometry as explicit values, the new effects appended, and — when the
-//!    diagnosis leaves structure no library effect explains — a flagged, commented
-//!    `discrepancy` section that says it is not physics from the library and is not simulated.
+//!    diagnosis leaves structure no library effect explains — a flagged `discrepancy` effect
+//!    ([`crate::world::discrepancy`]): the shapes the diagnosis located it with, refitted here
+//!    jointly with the geometry (so what the geometry absorbs is counted once), which the world
+//!    simulates and which says, in its note and a comment, that it is not physics from the
+//!    library.
 //! 6. **Re-simulate** the written file and compare again (RMS after, all rows and held out).
 //!
 //! Units: mm, radians inside, degrees and mm in files.
@@ -27,6 +30,7 @@ use crate::diagnosis::{diagnose, EffectReport, Options, Report};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::model::effects::{effect_observations, EffectContext, EffectSpec};
 use crate::recording::{Recording, Status};
+use crate::world::discrepancy::{self as world_discrepancy, DiscrepancyTerm, Driver};
 use crate::world::write::{discrepancy_comment, scenario_text, NewEffect};
 use crate::world::{identifiable, Scenario, ScenarioError};
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -94,10 +98,9 @@ pub struct TwinTerm {
     pub written: Result<String, String>,
 }
 
-/// An out-of-library remainder, written as a flagged comment (the world does not simulate it).
-///
-/// Built from the diagnosis' `unexplained` flag and where it is; when the diagnosis gains a
-/// fitted discrepancy term, [`discrepancy_of`] is the one place to describe it from.
+/// An out-of-library remainder: described from the diagnosis' `unexplained` flag and where it
+/// is ([`discrepancy_of`]), and written as a flagged `discrepancy` effect the world simulates
+/// when the diagnosis located it in shapes the twin can refit.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Discrepancy {
     /// Where it is and what it depends on, in the diagnosis' words.
@@ -109,6 +112,11 @@ pub struct Discrepancy {
     /// Library terms the diagnosis named beside it, not claimed (they may only soak up part of
     /// the unknown shape): written commented.
     pub unclaimed: Vec<String>,
+    /// The shapes written as the flagged `discrepancy` effect (labels), empty when none could be
+    /// refitted (the remainder is then only described).
+    pub simulated: Vec<String>,
+    /// Coefficients of the written term.
+    pub coefficients: usize,
 }
 
 /// What [`learn`] found and wrote.
@@ -160,9 +168,18 @@ impl Twin {
             }
         }
         if let Some(d) = &self.discrepancy {
+            let how = if d.simulated.is_empty() {
+                "not simulated".to_string()
+            } else {
+                format!(
+                    "simulated as a fitted smooth term of {} coefficients: {}",
+                    d.coefficients,
+                    d.simulated.join(", ")
+                )
+            };
             let _ = writeln!(
                 s,
-                "  discrepancy (flagged, not library physics, not simulated): {}",
+                "  discrepancy (flagged, not library physics; {how}): {}",
                 d.description.join("; ")
             );
             if !d.unclaimed.is_empty() {
@@ -225,15 +242,21 @@ pub fn learn(
         &Options::default(),
     )?;
     let specs: Vec<(String, Term)> = diagnosis.effects.iter().map(term_of).collect();
-    let (fitted_truth, written) = fit_twin(scenario, &rows, &specs)?;
+    let (fitted_truth, written, _) = fit_twin(scenario, &rows, &specs, &[])?;
     // Conventions §9: beside structure no library effect explains, a named library term may only
     // soak up part of an unknown shape, so it is not claimed: the twin keeps the geometry alone
     // and lists the terms, commented, in the flagged section.
     let claim = !diagnosis.unexplained;
-    let truth = if claim {
-        fitted_truth
+    let (shape_labels, shapes) = if claim {
+        (Vec::new(), Vec::new())
     } else {
-        fit_twin(scenario, &rows, &[])?.0
+        discrepancy_terms(&diagnosis)
+    };
+    let (truth, shapes) = if claim {
+        (fitted_truth, Vec::new())
+    } else {
+        let (t, _, shapes) = fit_twin(scenario, &rows, &[], &shapes)?;
+        (t, shapes)
     };
     let mut terms = Vec::new();
     let mut effects = Vec::new();
@@ -254,14 +277,21 @@ pub fn learn(
             (false, w) => unclaimed.push((label.clone(), w.ok())),
         }
     }
+    let coefficients: usize = shapes.iter().map(DiscrepancyTerm::width).sum();
+    if !shapes.is_empty() {
+        effects.push(discrepancy_effect(scenario, shapes));
+    }
     let mut text = scenario_text(scenario, source, out, &truth, &effects)?;
     let updated = Scenario::parse(&text, out, None)?;
     let after = comparison(&compare_rows(&updated, rec, opts)?);
     let mut discrepancy = discrepancy_of(&diagnosis, after);
     if let Some(d) = &mut discrepancy {
         d.unclaimed = unclaimed.iter().map(|(l, _)| l.clone()).collect();
+        d.simulated = shape_labels;
+        d.coefficients = coefficients;
         text.push_str(&discrepancy_comment(
             &d.description,
+            !d.simulated.is_empty(),
             d.heldout_rms_mm,
             d.noise_floor_mm,
         ));
@@ -281,8 +311,6 @@ pub fn learn(
 }
 
 /// The flagged remainder: the diagnosis' unexplained structure, with what the twin leaves.
-/// This is where a fitted discrepancy term of the diagnosis (issue 18 item 2) is to be
-/// described once the report carries one.
 pub fn discrepancy_of(report: &Report, after: Comparison) -> Option<Discrepancy> {
     if !report.unexplained {
         return None;
@@ -300,7 +328,66 @@ pub fn discrepancy_of(report: &Report, after: Comparison) -> Option<Discrepancy>
         heldout_rms_mm: after.heldout_mm,
         noise_floor_mm: report.mismatch.noise_floor_mm,
         unclaimed: Vec::new(),
+        simulated: Vec::new(),
+        coefficients: 0,
     })
+}
+
+/// The shapes of the diagnosis' discrepancy term as world terms (labels, terms with zero
+/// coefficients), to refit with the twin's geometry.
+fn discrepancy_terms(report: &Report) -> (Vec<String>, Vec<DiscrepancyTerm>) {
+    use crate::diagnosis::shapes::Variable as V;
+    let Some(d) = &report.discrepancy else {
+        return (Vec::new(), Vec::new());
+    };
+    d.model
+        .shapes
+        .iter()
+        .map(|spec| {
+            let driver = match spec.variable {
+                V::OwnAngle { joint } => Driver::Joint {
+                    acted: joint,
+                    driver: joint,
+                    flips: false,
+                },
+                V::OtherAngle { acted, driver } => Driver::Joint {
+                    acted,
+                    driver,
+                    flips: false,
+                },
+                V::Direction { joint } => Driver::Joint {
+                    acted: joint,
+                    driver: joint,
+                    flips: true,
+                },
+                V::Time => Driver::Time,
+                V::Position => Driver::Position,
+            };
+            let mut term = DiscrepancyTerm {
+                driver,
+                form: spec.form.clone(),
+                coefficients: Vec::new(),
+            };
+            term.coefficients = vec![0.0; term.width()];
+            (spec.label(), term)
+        })
+        .unzip()
+}
+
+/// The flagged `discrepancy` effect to append.
+fn discrepancy_effect(scenario: &Scenario, terms: Vec<DiscrepancyTerm>) -> NewEffect {
+    let d = world_discrepancy::Discrepancy {
+        terms,
+        note: format!(
+            "{}: the structure of the recording no library effect explains, fitted in the shapes the diagnosis located it with; it describes a residual and explains nothing",
+            world_discrepancy::FLAG
+        ),
+    };
+    let coefficients: usize = d.terms.iter().map(DiscrepancyTerm::width).sum();
+    NewEffect {
+        table: world_discrepancy::table(&scenario.rig.chain, &d),
+        summary: format!("{} term(s), {coefficients} coefficients", d.terms.len()),
+    }
 }
 
 /// The library terms not claimed, as commented `[[effects]]` tables a user may uncomment to
@@ -517,7 +604,15 @@ fn fit_twin(
     scenario: &Scenario,
     rows: &[Row],
     terms: &[(String, Term)],
-) -> Result<(ErrorParams, Vec<Result<NewEffect, String>>), TwinError> {
+    shapes: &[DiscrepancyTerm],
+) -> Result<
+    (
+        ErrorParams,
+        Vec<Result<NewEffect, String>>,
+        Vec<DiscrepancyTerm>,
+    ),
+    TwinError,
+> {
     let rig = &scenario.rig;
     let masses_ok = |j: usize| {
         EffectSpec::JointCompliance(j)
@@ -547,7 +642,7 @@ fn fit_twin(
     let free = identifiable(rig);
     let mut best: Option<(f64, f64, DVector<f64>)> = None;
     for &tau in &taus {
-        let (a, r) = twin_system(scenario, rows, &free, &active, tau);
+        let (a, r) = twin_system(scenario, rows, &free, &active, shapes, tau);
         let x = solve(&a, &r)?;
         let rss = (&r - &a * &x).norm_squared();
         if best.as_ref().is_none_or(|b| rss < b.0) {
@@ -566,6 +661,16 @@ fn fit_twin(
         coef_of.push(x.rows(at, w).iter().copied().collect::<Vec<f64>>());
         at += w;
     }
+    let fitted_shapes = shapes
+        .iter()
+        .map(|s| {
+            let w = s.width();
+            let mut s = s.clone();
+            s.coefficients = x.rows(at, w).iter().copied().collect();
+            at += w;
+            s
+        })
+        .collect();
     let mut k = 0;
     let written = usable
         .iter()
@@ -578,7 +683,7 @@ fn fit_twin(
             }
         })
         .collect();
-    Ok((truth, written))
+    Ok((truth, written, fitted_shapes))
 }
 
 fn width(t: &Term) -> usize {
@@ -607,6 +712,7 @@ fn twin_system(
     rows: &[Row],
     free: &[usize],
     terms: &[Term],
+    shapes: &[DiscrepancyTerm],
     tau: f64,
 ) -> (DMatrix<f64>, DVector<f64>) {
     let rig = &scenario.rig;
@@ -619,7 +725,9 @@ fn twin_system(
         payload_kg: 0.0,
     };
     let fitted: Vec<&Row> = rows.iter().filter(|r| !r.heldout).collect();
-    let p = free.len() + terms.iter().map(width).sum::<usize>();
+    let p = free.len()
+        + terms.iter().map(width).sum::<usize>()
+        + shapes.iter().map(DiscrepancyTerm::width).sum::<usize>();
     let mut a = DMatrix::zeros(3 * fitted.len(), p);
     let mut r = DVector::zeros(3 * fitted.len());
     for (i, row) in fitted.iter().enumerate() {
@@ -657,8 +765,44 @@ fn twin_system(
                 }
             }
         }
+        let mut c = p - shapes.iter().map(DiscrepancyTerm::width).sum::<usize>();
+        let at = chain.position(&row.q, e);
+        for s in shapes {
+            shape_columns(s, row, &jj, &at, &mut a, 3 * i, c);
+            c += s.width();
+        }
     }
     (a, r)
+}
+
+/// A discrepancy term's columns for one row (3 rows from `r0`, columns from `c0`), built with
+/// the world's own evaluation so what is fitted is what is simulated.
+fn shape_columns(
+    s: &DiscrepancyTerm,
+    row: &Row,
+    jj: &DMatrix<f64>,
+    at: &Vector3<f64>,
+    a: &mut DMatrix<f64>,
+    r0: usize,
+    c0: usize,
+) {
+    match s.driver {
+        Driver::Joint { acted, .. } => {
+            for (f, v) in s.joint_values(&row.q, &row.direction).iter().enumerate() {
+                for k in 0..3 {
+                    a[(r0 + k, c0 + f)] = v * jj[(k, acted)];
+                }
+            }
+        }
+        Driver::Time | Driver::Position => {
+            let v = s.tip_values(row.t_s, at);
+            for (f, val) in v.iter().enumerate() {
+                for k in 0..3 {
+                    a[(r0 + k, c0 + k * v.len() + f)] = *val;
+                }
+            }
+        }
+    }
 }
 
 fn solve(a: &DMatrix<f64>, r: &DVector<f64>) -> Result<DVector<f64>, TwinError> {

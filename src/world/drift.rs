@@ -46,7 +46,7 @@ impl Effect for ThermalDrift {
         }
     }
 
-    fn tip_offset(&self, t_s: f64) -> Vector3<f64> {
+    fn tip_offset(&self, t_s: f64, _tip: &Vector3<f64>) -> Vector3<f64> {
         let mut v = Vector3::zeros();
         if let DriftTarget::Axis(k) = self.target {
             v[k] = self.at(t_s);

@@ -4,7 +4,8 @@
 //! - **joint space**: the actual joint angles differ from the commanded ones
 //!   ([`Effect::joint_offsets`], given the commanded joints, the time and the motion history);
 //! - **the pin tip**: a Cartesian displacement of the true tip in the world frame
-//!   ([`Effect::tip_offset`], e.g. thermal growth along an axis);
+//!   ([`Effect::tip_offset`], e.g. thermal growth along an axis, or a fitted discrepancy that
+//!   varies with the position);
 //! - **the table**: the map from table readings to true world positions ([`Effect::distort_table`]).
 //!
 //! Adding an effect means one new file with a type implementing [`Effect`] and a `parse`
@@ -85,8 +86,9 @@ pub trait Effect: fmt::Debug + Send + Sync {
     /// Adds this effect's joint errors (rad or mm) to `dq`, actual = commanded + dq.
     fn joint_offsets(&self, _ctx: &JointContext<'_>, _dq: &mut [f64]) {}
 
-    /// Displacement (mm, world) of the true pin tip at time `t_s`.
-    fn tip_offset(&self, _t_s: f64) -> Vector3<f64> {
+    /// Displacement (mm, world) of the true pin tip at time `t_s`, the tip being at `tip` (mm,
+    /// world) before any such displacement.
+    fn tip_offset(&self, _t_s: f64, _tip: &Vector3<f64>) -> Vector3<f64> {
         Vector3::zeros()
     }
 

@@ -21,6 +21,7 @@
 
 mod backlash;
 mod compliance;
+pub mod discrepancy;
 mod drift;
 mod effect;
 mod geometric;
@@ -268,8 +269,9 @@ impl World {
     fn arm_state(&self, q: &[f64], t_s: f64, history: &MotionHistory) -> ArmState {
         let actual = self.actual_joints(q, t_s, history);
         let tool = self.chain.tool_pose(&actual, &self.truth);
-        let drift: Vector3<f64> = self.effects.iter().map(|e| e.tip_offset(t_s)).sum();
-        let tip = self.chain.position(&actual, &self.truth) + drift;
+        let at = self.chain.position(&actual, &self.truth);
+        let drift: Vector3<f64> = self.effects.iter().map(|e| e.tip_offset(t_s, &at)).sum();
+        let tip = at + drift;
         ArmState {
             commanded: q.to_vec(),
             actual,

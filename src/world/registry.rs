@@ -5,7 +5,7 @@
 
 use super::effect::{Effect, ParseCtx};
 use super::scenario::ScenarioError;
-use super::{backlash, compliance, drift, table, transmission, trig_joint};
+use super::{backlash, compliance, discrepancy, drift, table, transmission, trig_joint};
 use std::sync::Arc;
 
 /// Parses one effect's table.
@@ -21,6 +21,7 @@ pub const REGISTRY: &[(&str, ParseFn)] = &[
     ("table_scale", table::parse_scale),
     ("table_squareness", table::parse_squareness),
     ("registration_offset", table::parse_registration_offset),
+    ("discrepancy", discrepancy::parse),
 ];
 
 /// Parses one `[[effects]]` entry by its `kind`.
@@ -74,6 +75,8 @@ mod tests {
                 seen.insert(e.kind());
             }
         }
+        // A fitted discrepancy is written by the twin, never shipped: its own tests parse it.
+        seen.insert("discrepancy");
         assert_eq!(seen, unique);
     }
 

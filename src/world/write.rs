@@ -188,13 +188,27 @@ pub fn scenario_text(
     ))
 }
 
-/// The flagged discrepancy as TOML comments: structure the library does not explain, which the
-/// world does not simulate.
-pub fn discrepancy_comment(description: &[String], heldout_rms_mm: f64, floor_mm: f64) -> String {
-    let mut s = String::from(
-        "\n# ---- discrepancy: FLAGGED, NOT PHYSICS FROM THE LIBRARY, NOT SIMULATED ----\n\
-         # The recording shows structure no library effect explains; the twin does not claim\n\
-         # one for it and the world above does not reproduce it. What the diagnosis located:\n",
+/// The flagged discrepancy as TOML comments: structure the library does not explain; when
+/// `simulated`, the `discrepancy` effect above is its fitted smooth term, which the world
+/// simulates but which is no physics.
+pub fn discrepancy_comment(
+    description: &[String],
+    simulated: bool,
+    heldout_rms_mm: f64,
+    floor_mm: f64,
+) -> String {
+    let how = if simulated {
+        "# The recording shows structure no library effect explains; the twin claims no library\n\
+         # effect for it. The `discrepancy` effect above (kind = \"discrepancy\") is a smooth fit of\n\
+         # it in the shapes the diagnosis located, so the world reproduces the recording; it\n\
+         # describes a residual and explains nothing. What the diagnosis located:\n"
+    } else {
+        "# The recording shows structure no library effect explains; the twin does not claim\n\
+         # one for it and the world above does not reproduce it. What the diagnosis located:\n"
+    };
+    let mut s = format!(
+        "\n# ---- discrepancy: FLAGGED, NOT PHYSICS FROM THE LIBRARY{} ----\n{how}",
+        if simulated { "" } else { ", NOT SIMULATED" }
     );
     for d in description {
         for line in d.lines() {
