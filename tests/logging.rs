@@ -26,7 +26,11 @@ fn debug_logs_to_a_pipe_are_plain_text() {
         "--out",
         rec,
     ]);
-    assert!(sim.status.success(), "{}", String::from_utf8_lossy(&sim.stderr));
+    assert!(
+        sim.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sim.stderr)
+    );
     let out = rigcal(&[
         "diagnose",
         "-vv",
@@ -35,9 +39,16 @@ fn debug_logs_to_a_pipe_are_plain_text() {
         "--recording",
         rec,
     ]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let log = String::from_utf8_lossy(&out.stderr);
     // The diagnosis logs its shape choices at debug level: the test sees real log lines.
     assert!(log.contains("DEBUG"), "no debug lines: {log}");
-    assert!(!log.contains('\u{1b}'), "escape codes in a piped log: {log:?}");
+    assert!(
+        !log.contains('\u{1b}'),
+        "escape codes in a piped log: {log:?}"
+    );
 }
