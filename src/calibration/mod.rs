@@ -39,7 +39,7 @@ pub use through_session::{
 };
 pub use variable::{with_learner, WorldMeasurer};
 
-use crate::division::{DivisionError, Measurer, Space};
+use crate::division::{DivisionError, Measurer, Selection, Space};
 use crate::identification::Observation;
 use crate::learners::{LearnerKind, LearnerSettings, SettingsError, TrainReport};
 use crate::model::ModelFile;
@@ -71,6 +71,12 @@ pub struct CalibrationOptions {
     /// the corners first.
     #[arg(long, default_value_t = 27)]
     pub test_points: usize,
+    /// How each region's measurement locations are chosen from its candidates: `kappa` (the
+    /// paper's: κ of eq. (4) lowered by random exchanges) or `d-optimal` (det of MᵀM raised by
+    /// greedy choice and exchange passes). Either way a region keeps its parent's measurements
+    /// that fall in it and measures only the missing ones.
+    #[arg(long, value_enum, default_value_t = Selection::Kappa)]
+    pub selection: Selection,
     /// Random poses the identifiable basis (the CEPs) is chosen on.
     #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
     pub design_poses: usize,
@@ -109,6 +115,7 @@ impl Default for CalibrationOptions {
             max_regions: None,
             per_region: 20,
             test_points: 27,
+            selection: Selection::Kappa,
             design_poses: PAPER_DESIGN_POSES,
             learner: LearnerKind::Fcmac,
             learner_settings: LearnerSettings::default(),

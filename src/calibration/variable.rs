@@ -66,6 +66,7 @@ pub(super) fn calibrate(
         max_regions: opts.region_cap(),
         per_region: opts.per_region,
         test_points: opts.test_points,
+        selection: opts.selection,
         seed: opts.seed,
         ..DivisionOptions::default()
     };
@@ -188,8 +189,8 @@ fn model_file(
             recording: Some(label),
             measurements: report.observations.len(),
             notes: Some(format!(
-                "{mode_name} division in {:?} space, seed {}",
-                opts.space, opts.seed
+                "{mode_name} division in {:?} space, {:?} selection, seed {}",
+                opts.space, opts.selection, opts.seed
             )),
         },
         ModelBody::Variable {
