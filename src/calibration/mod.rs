@@ -77,6 +77,11 @@ pub struct CalibrationOptions {
     /// that fall in it and measures only the missing ones.
     #[arg(long, value_enum, default_value_t = Selection::Kappa)]
     pub selection: Selection,
+    /// Planning mode: a half keeps its parent's measurements that fall in it and measures only
+    /// the missing ones (true); `--no-reuse` measures every region afresh (each region's fit
+    /// uses only its own), for comparison.
+    #[arg(long = "no-reuse", action = clap::ArgAction::SetFalse)]
+    pub reuse_parent: bool,
     /// Random poses the identifiable basis (the CEPs) is chosen on.
     #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
     pub design_poses: usize,
@@ -116,6 +121,7 @@ impl Default for CalibrationOptions {
             per_region: 20,
             test_points: 27,
             selection: Selection::Kappa,
+            reuse_parent: true,
             design_poses: PAPER_DESIGN_POSES,
             learner: LearnerKind::Fcmac,
             learner_settings: LearnerSettings::default(),

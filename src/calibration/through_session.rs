@@ -58,6 +58,9 @@ fn planning_options(files: PlanningFiles<'_>, opts: &CalibrationOptions) -> Stri
     if opts.selection != crate::division::Selection::Kappa {
         s.push_str(&format!(" --selection {:?}", opts.selection));
     }
+    if !opts.reuse_parent {
+        s.push_str(" --no-reuse");
+    }
     if let Some(depth) = opts.unmeasurable_depth {
         s.push_str(&format!(" --unmeasurable-depth {depth}"));
     }

@@ -67,6 +67,7 @@ pub(super) fn calibrate(
         per_region: opts.per_region,
         test_points: opts.test_points,
         selection: opts.selection,
+        reuse_parent: opts.reuse_parent,
         seed: opts.seed,
         ..DivisionOptions::default()
     };
