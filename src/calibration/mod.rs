@@ -276,6 +276,8 @@ pub struct DivisionFigures {
     pub accuracy_mm: f64,
     /// Measurements per region asked for.
     pub per_region: usize,
+    /// How measurement locations were chosen.
+    pub selection: Selection,
     /// Region cap.
     pub max_regions: usize,
     /// Regions made (leaves).

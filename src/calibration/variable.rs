@@ -228,6 +228,7 @@ fn figures(r: &DivisionReport, opts: &CalibrationOptions, mode: &str) -> Divisio
         space: opts.space,
         accuracy_mm: opts.accuracy_mm,
         per_region: opts.per_region,
+        selection: opts.selection,
         max_regions: opts.region_cap(),
         regions: leaves.len(),
         passing,
@@ -379,11 +380,12 @@ impl DivisionFigures {
         }
         let _ = writeln!(
             s,
-            "{} division in {:?} space, demanded accuracy {} mm, {} per region (paper: {})",
+            "{} division in {:?} space, demanded accuracy {} mm, {} per region ({:?} selection) (paper: {})",
             self.mode,
             self.space,
             self.accuracy_mm,
             self.per_region,
+            self.selection,
             self.space.paper_figures()
         );
         let _ = writeln!(
