@@ -39,7 +39,7 @@ pub use through_session::{
 };
 pub use variable::{with_learner, WorldMeasurer};
 
-use crate::division::{DivisionError, Measurer, Space};
+use crate::division::{DivisionError, Measurer, Selection, Space};
 use crate::identification::Observation;
 use crate::learners::{LearnerKind, LearnerSettings, SettingsError, TrainReport};
 use crate::model::ModelFile;
@@ -71,6 +71,17 @@ pub struct CalibrationOptions {
     /// the corners first.
     #[arg(long, default_value_t = 27)]
     pub test_points: usize,
+    /// How each region's measurement locations are chosen from its candidates: `kappa` (the
+    /// paper's: κ of eq. (4) lowered by random exchanges) or `d-optimal` (det of MᵀM raised by
+    /// greedy choice and exchange passes). Either way a region keeps its parent's measurements
+    /// that fall in it and measures only the missing ones.
+    #[arg(long, value_enum, default_value_t = Selection::Kappa)]
+    pub selection: Selection,
+    /// Planning mode: a half keeps its parent's measurements that fall in it and measures only
+    /// the missing ones (true); `--no-reuse` measures every region afresh (each region's fit
+    /// uses only its own), for comparison.
+    #[arg(long = "no-reuse", action = clap::ArgAction::SetFalse)]
+    pub reuse_parent: bool,
     /// Random poses the identifiable basis (the CEPs) is chosen on.
     #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
     pub design_poses: usize,
@@ -109,6 +120,8 @@ impl Default for CalibrationOptions {
             max_regions: None,
             per_region: 20,
             test_points: 27,
+            selection: Selection::Kappa,
+            reuse_parent: true,
             design_poses: PAPER_DESIGN_POSES,
             learner: LearnerKind::Fcmac,
             learner_settings: LearnerSettings::default(),
@@ -263,6 +276,8 @@ pub struct DivisionFigures {
     pub accuracy_mm: f64,
     /// Measurements per region asked for.
     pub per_region: usize,
+    /// How measurement locations were chosen.
+    pub selection: Selection,
     /// Region cap.
     pub max_regions: usize,
     /// Regions made (leaves).

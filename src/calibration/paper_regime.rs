@@ -4,7 +4,7 @@
 //! `summary.json`) and the text of its `summary.txt`.
 
 use super::path_figures::{MethodFigures, PathFigures};
-use crate::division::Space;
+use crate::division::{Selection, Space};
 use crate::model::{ModelBody, ModelFile};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -53,26 +53,38 @@ pub struct FigureRun {
     pub figure: PaperFigure,
     /// The division's space.
     pub division: Space,
+    /// How measurement locations were chosen.
+    pub selection: Selection,
+    /// Measurements asked for per region.
+    pub per_region: usize,
     /// Regions made (leaves).
     pub regions: usize,
-    /// Identification measurements used.
+    /// Identification measurements used (each location once: a half's reused parent points
+    /// are not counted again).
     pub measurements: usize,
-    /// Test measurements made.
+    /// Test measurements made (counted apart from the identification measurements).
     pub test_measurements: usize,
     /// The figure's path (and, for Fig. 8, inside the unmeasurable region).
     pub path: PathFigures,
 }
 
 impl FigureRun {
-    /// The run of `figure` from its model file and the figures along its path; None for a model
-    /// that is not a division.
-    pub fn of(figure: PaperFigure, model: &ModelFile, path: PathFigures) -> Option<Self> {
+    /// The run of `figure` from its model file (made with `selection`) and the figures along its
+    /// path; None for a model that is not a division.
+    pub fn of(
+        figure: PaperFigure,
+        selection: Selection,
+        model: &ModelFile,
+        path: PathFigures,
+    ) -> Option<Self> {
         let ModelBody::Variable { division, tree, .. } = &model.model else {
             return None;
         };
         Some(Self {
             figure,
             division: tree.space,
+            selection,
+            per_region: division.per_region,
             regions: division.regions,
             measurements: division.measurements,
             test_measurements: division.test_measurements,
@@ -86,11 +98,14 @@ impl FigureRun {
             Space::Cartesian => (130, 2600),
         };
         let mut s = format!(
-            "  {}: {:?}-space division, {} regions, {} identification measurements (paper {paper_regions}, {paper_measurements}); {}, mean / max mm\n    ",
+            "  {}: {:?}-space division, {:?} selection, {} per region: {} regions, {} identification + {} test measurements (paper {paper_regions} regions, {paper_measurements} identification); {}, mean / max mm\n    ",
             self.figure.name(),
             self.division,
+            self.selection,
+            self.per_region,
             self.regions,
             self.measurements,
+            self.test_measurements,
             self.path.path
         );
         for m in &self.path.methods {
@@ -136,6 +151,9 @@ pub struct PaperRegimeSummary {
     pub per_region: usize,
     /// Figs. 6, 7 and 8.
     pub runs: Vec<FigureRun>,
+    /// Figs. 6 and 7 again at about half the paper's measurements (D-optimal locations, fewer
+    /// per region; issue [4/5] item 3).
+    pub half_budget: Vec<FigureRun>,
     /// Largest CEP jumps along the Fig. 6 path: regions, FCMAC and CMAC on one division.
     pub cep_jumps: Vec<MethodFigures>,
 }
@@ -151,6 +169,13 @@ impl PaperRegimeSummary {
             100.0 * self.non_geometric_share
         );
         for run in &self.runs {
+            s.push_str(&run.text());
+        }
+        if !self.half_budget.is_empty() {
+            s.push_str("  half the measurements: the same divisions with D-optimal locations and fewer per region (a half keeps its parent's points; tests counted apart)
+");
+        }
+        for run in &self.half_budget {
             s.push_str(&run.text());
         }
         if !self.cep_jumps.is_empty() {

@@ -55,6 +55,12 @@ fn planning_options(files: PlanningFiles<'_>, opts: &CalibrationOptions) -> Stri
     if opts.design_poses != super::PAPER_DESIGN_POSES {
         s.push_str(&format!(" --design-poses {}", opts.design_poses));
     }
+    if opts.selection != crate::division::Selection::Kappa {
+        s.push_str(&format!(" --selection {:?}", opts.selection));
+    }
+    if !opts.reuse_parent {
+        s.push_str(" --no-reuse");
+    }
     if let Some(depth) = opts.unmeasurable_depth {
         s.push_str(&format!(" --unmeasurable-depth {depth}"));
     }

@@ -66,6 +66,8 @@ pub(super) fn calibrate(
         max_regions: opts.region_cap(),
         per_region: opts.per_region,
         test_points: opts.test_points,
+        selection: opts.selection,
+        reuse_parent: opts.reuse_parent,
         seed: opts.seed,
         ..DivisionOptions::default()
     };
@@ -188,8 +190,8 @@ fn model_file(
             recording: Some(label),
             measurements: report.observations.len(),
             notes: Some(format!(
-                "{mode_name} division in {:?} space, seed {}",
-                opts.space, opts.seed
+                "{mode_name} division in {:?} space, {:?} selection, seed {}",
+                opts.space, opts.selection, opts.seed
             )),
         },
         ModelBody::Variable {
@@ -226,6 +228,7 @@ fn figures(r: &DivisionReport, opts: &CalibrationOptions, mode: &str) -> Divisio
         space: opts.space,
         accuracy_mm: opts.accuracy_mm,
         per_region: opts.per_region,
+        selection: opts.selection,
         max_regions: opts.region_cap(),
         regions: leaves.len(),
         passing,
@@ -377,11 +380,12 @@ impl DivisionFigures {
         }
         let _ = writeln!(
             s,
-            "{} division in {:?} space, demanded accuracy {} mm, {} per region (paper: {})",
+            "{} division in {:?} space, demanded accuracy {} mm, {} per region ({:?} selection) (paper: {})",
             self.mode,
             self.space,
             self.accuracy_mm,
             self.per_region,
+            self.selection,
             self.space.paper_figures()
         );
         let _ = writeln!(

@@ -16,11 +16,13 @@
 
 pub mod design;
 mod planner;
+pub mod select;
 mod space;
 mod tree;
 
 pub use planner::{
     divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
 };
+pub use select::Selection;
 pub use space::{Bounds, DivisionSpace, Space};
 pub use tree::{expand as tree_expand, RegionModel, RegionNode, RegionTest, RegionTree};

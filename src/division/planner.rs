@@ -14,10 +14,10 @@
 //! in it, every fifth held out to test (prediction error), all of them in its final fit.
 
 use super::design;
+use super::select::{self, Selection};
 use super::space::{Bounds, DivisionSpace, Space, SpaceError};
 use super::tree::{expand, RegionNode, RegionTest, RegionTree};
 use crate::compensation::{compensate_from, CompensationOptions};
-use crate::identification::identifiability::kappa_eq4;
 use crate::identification::{fit, FitOptions, FitResult, Observation, Prior};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::rig::Rig;
@@ -98,6 +98,13 @@ pub struct DivisionOptions {
     pub candidates: usize,
     /// Exchange steps of the κ selection.
     pub exchange_steps: usize,
+    /// How a region's measurement locations are chosen: κ of eq. (4) (the paper's) or
+    /// D-optimality (det of MᵀM).
+    pub selection: Selection,
+    /// Planning mode: a half keeps its parent's measurements that fall in it and measures only
+    /// the missing ones (true, the default); false measures every region afresh (each fit uses
+    /// only the measurements taken for its own region), for comparison.
+    pub reuse_parent: bool,
     /// Prior σ of a region's CEPs around its parent's: lengths (mm) and angles (rad).
     pub prior_sigma: (f64, f64),
     /// Measurement noise assumed for weighting the prior (mm).
@@ -123,6 +130,8 @@ impl Default for DivisionOptions {
             min_fraction: 1.0 / 64.0,
             candidates: 60,
             exchange_steps: 60,
+            selection: Selection::Kappa,
+            reuse_parent: true,
             prior_sigma: (0.5, 0.1f64.to_radians()),
             noise_mm: 0.02,
             seed: 1,
@@ -167,6 +176,14 @@ pub struct DivisionReport {
     pub test_measurements: usize,
 }
 
+/// A measurement of the division: the observation, its division-space coordinates and the
+/// region it was measured for (empty offline).
+struct Datum {
+    obs: Observation,
+    x: [f64; 3],
+    region: String,
+}
+
 /// Why a region was not split: a reason for its note, or a measurer that stopped.
 enum SplitError {
     Cannot(String),
@@ -179,7 +196,7 @@ struct Ctx<'a, 'm> {
     basis: &'a [usize],
     opts: &'a DivisionOptions,
     mode: Mode<'m>,
-    data: Vec<(Observation, [f64; 3])>,
+    data: Vec<Datum>,
     rng: ChaCha8Rng,
     tests_made: usize,
     n_params: usize,
@@ -210,16 +227,20 @@ pub fn divide(
         let obs = obs.to_vec();
         ctx.data = obs
             .into_iter()
-            .map(|o| {
-                let x = ctx.space.coords(&o.q);
-                (o, x)
+            .map(|obs| {
+                let x = ctx.space.coords(&obs.q);
+                Datum {
+                    obs,
+                    x,
+                    region: String::new(),
+                }
             })
-            .filter(|(_, x)| !ctx.excluded(x))
+            .filter(|d| !ctx.excluded(&d.x))
             .collect();
     }
     let mut root = RegionNode::unidentified("r".into(), full);
-    ctx.populate(&root.bounds, ctx.opts.per_region.max(3 * basis.len()))?;
-    match ctx.identify(&root.bounds, None) {
+    ctx.populate("r", &root.bounds, ctx.opts.per_region.max(3 * basis.len()))?;
+    match ctx.identify("r", &root.bounds, None) {
         Ok((cep, kappa, n)) => {
             root.cep = Some(cep);
             root.kappa = kappa;
@@ -256,7 +277,7 @@ pub fn divide(
         }
     }
     borrow_neighbour_ceps(&mut root);
-    let all: Vec<Observation> = ctx.data.iter().map(|(o, _)| o.clone()).collect();
+    let all: Vec<Observation> = ctx.data.iter().map(|d| d.obs.clone()).collect();
     let conventional = fit(
         &rig.chain,
         &all,
@@ -395,10 +416,16 @@ impl Ctx<'_, '_> {
         })
     }
 
-    fn in_box(&self, b: &Bounds) -> Vec<&(Observation, [f64; 3])> {
+    /// The measurements region `id` (box `b`) may use: those in its box, or, when regions are
+    /// measured afresh ([`DivisionOptions::reuse_parent`] false, planning mode), only those
+    /// taken for it.
+    fn in_box(&self, id: &str, b: &Bounds) -> Vec<&Observation> {
+        let own_only = !self.opts.reuse_parent && matches!(self.mode, Mode::Planning(_));
         self.data
             .iter()
-            .filter(|(_, x)| b.contains(x, &self.space.full))
+            .filter(|d| b.contains(&d.x, &self.space.full))
+            .filter(|d| !own_only || d.region == id)
+            .map(|d| &d.obs)
             .collect()
     }
 
@@ -406,27 +433,31 @@ impl Ctx<'_, '_> {
     /// time: the κ-selected locations as one batch, then (for the ones that could not be
     /// measured) replacements selected against what was measured, up to
     /// [`REPLACEMENT_ROUNDS`]. A region still short is left so: its fit says why.
-    fn populate(&mut self, b: &Bounds, target: usize) -> Result<(), MeasureError> {
+    fn populate(&mut self, id: &str, b: &Bounds, target: usize) -> Result<(), MeasureError> {
         let Mode::Planning(_) = self.mode else {
             return Ok(());
         };
         let mut existing: Vec<Vec<f64>> = self
-            .in_box(b)
+            .in_box(id, b)
             .into_iter()
-            .map(|(o, _)| o.q.clone())
+            .map(|o| o.q.clone())
             .collect();
         for _ in 0..=REPLACEMENT_ROUNDS {
             if existing.len() >= target {
                 break;
             }
-            let chosen = self.select(b, &existing, target - existing.len());
+            let chosen = self.select(id, b, &existing, target - existing.len());
             if chosen.is_empty() {
                 break;
             }
-            for o in self.measure_batch(&chosen)?.into_iter().flatten() {
-                let x = self.space.coords(&o.q);
-                existing.push(o.q.clone());
-                self.data.push((o, x));
+            for obs in self.measure_batch(&chosen)?.into_iter().flatten() {
+                let x = self.space.coords(&obs.q);
+                existing.push(obs.q.clone());
+                self.data.push(Datum {
+                    obs,
+                    x,
+                    region: id.to_string(),
+                });
             }
         }
         Ok(())
@@ -440,57 +471,41 @@ impl Ctx<'_, '_> {
         }
     }
 
-    /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, keep
-    /// κ of eq. (4) small (random start, then exchanges that lower κ).
-    fn select(&mut self, b: &Bounds, existing: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
-        let pool = self.candidate_pool(b, self.opts.candidates.max(n));
-        let mut pool = pool;
+    /// Measurement-location selection: `n` measurable poses in `b` that, with `existing`, make
+    /// the region's identification well conditioned, by the rule of
+    /// [`DivisionOptions::selection`] ([`select`]).
+    fn select(&mut self, id: &str, b: &Bounds, existing: &[Vec<f64>], n: usize) -> Vec<Vec<f64>> {
+        let mut pool = self.candidate_pool(id, b, self.opts.candidates.max(n));
         if pool.len() <= n {
             return pool;
         }
         pool.shuffle(&mut self.rng);
-        let e = ErrorParams::zeros(self.rig.chain.layout());
-        let block = |q: &[f64]| {
-            let (_, j) = self.rig.chain.position_and_param_jacobian(q, &e);
-            DMatrix::from_fn(3, self.basis.len(), |r, c| j[(r, self.basis[c])])
-        };
-        let fixed: Vec<DMatrix<f64>> = existing.iter().map(|q| block(q)).collect();
-        let blocks: Vec<DMatrix<f64>> = pool.iter().map(|q| block(q)).collect();
-        let kappa_of = |sel: &[usize]| {
-            let rows = 3 * (fixed.len() + sel.len());
-            let mut m = DMatrix::zeros(rows, self.basis.len());
-            for (k, bl) in fixed
-                .iter()
-                .chain(sel.iter().map(|&i| &blocks[i]))
-                .enumerate()
-            {
-                m.view_mut((3 * k, 0), (3, self.basis.len())).copy_from(bl);
-            }
-            kappa_eq4(&m)
-        };
-        let mut chosen: Vec<usize> = (0..n).collect();
-        let mut rest: Vec<usize> = (n..pool.len()).collect();
-        let mut best = kappa_of(&chosen);
-        for _ in 0..self.opts.exchange_steps {
-            let i = self.rng.random_range(0..chosen.len());
-            let j = self.rng.random_range(0..rest.len());
-            std::mem::swap(&mut chosen[i], &mut rest[j]);
-            let k = kappa_of(&chosen);
-            if k < best {
-                best = k;
-            } else {
-                std::mem::swap(&mut chosen[i], &mut rest[j]);
-            }
-        }
+        let fixed: Vec<DMatrix<f64>> = existing.iter().map(|q| self.block(q)).collect();
+        let blocks: Vec<DMatrix<f64>> = pool.iter().map(|q| self.block(q)).collect();
+        let chosen = select::choose(
+            self.opts.selection,
+            &fixed,
+            &blocks,
+            n,
+            self.opts.exchange_steps,
+            &mut self.rng,
+        );
         chosen.into_iter().map(|i| pool[i].clone()).collect()
+    }
+
+    /// The rows of [M] a measurement at `q` adds: the position Jacobian of the CEPs.
+    fn block(&self, q: &[f64]) -> DMatrix<f64> {
+        let e = ErrorParams::zeros(self.rig.chain.layout());
+        let (_, j) = self.rig.chain.position_and_param_jacobian(q, &e);
+        DMatrix::from_fn(3, self.basis.len(), |r, c| j[(r, self.basis[c])])
     }
 
     /// Measurable candidate locations in `b`: the box's corners, then a Halton set from a
     /// random offset ([`design::candidate_design`]); a location that cannot be measured is
     /// replaced by one drawn at random.
-    fn candidate_pool(&mut self, b: &Bounds, n: usize) -> Vec<Vec<f64>> {
+    fn candidate_pool(&mut self, id: &str, b: &Bounds, n: usize) -> Vec<Vec<f64>> {
         let offset = self.rng.random_range(0..1u64 << 20);
-        let seed = self.box_seed(b);
+        let seed = self.box_seed(id, b);
         let seed = seed.as_deref();
         let mut pool = Vec::with_capacity(n);
         for u in design::candidate_design(n, offset) {
@@ -505,11 +520,11 @@ impl Ctx<'_, '_> {
     /// A pose of box `b` for the inverse kinematics of Cartesian locations to start from: a
     /// measurement already in it, else the pose of its centre (None in joint space, which
     /// needs none).
-    fn box_seed(&mut self, b: &Bounds) -> Option<Vec<f64>> {
+    fn box_seed(&mut self, id: &str, b: &Bounds) -> Option<Vec<f64>> {
         if self.space.space == Space::Joint {
             return None;
         }
-        if let Some((o, _)) = self.in_box(b).first() {
+        if let Some(o) = self.in_box(id, b).first() {
             return Some(o.q.clone());
         }
         self.pose_at(b, &b.centre(), None)
@@ -538,16 +553,17 @@ impl Ctx<'_, '_> {
     /// Identifies the CEPs of box `b` (offline: leaving every fifth point out when `hold_out`).
     fn fit_box(
         &self,
+        id: &str,
         b: &Bounds,
         parent: Option<&[f64]>,
         hold_out: bool,
     ) -> Result<(Vec<f64>, f64, usize), String> {
         let obs: Vec<Observation> = self
-            .in_box(b)
+            .in_box(id, b)
             .into_iter()
             .enumerate()
             .filter(|(k, _)| !(hold_out && k % 5 == 4))
-            .map(|(_, (o, _))| o.clone())
+            .map(|(_, o)| o.clone())
             .collect();
         let min_points = (self.basis.len() / 3 + 1).max(self.opts.per_region / 2);
         if obs.len() < min_points {
@@ -578,10 +594,11 @@ impl Ctx<'_, '_> {
 
     fn identify(
         &self,
+        id: &str,
         b: &Bounds,
         parent: Option<&[f64]>,
     ) -> Result<(Vec<f64>, f64, usize), String> {
-        self.fit_box(b, parent, false)
+        self.fit_box(id, b, parent, false)
     }
 
     /// Tests a region's CEPs: planning mode measures the arm at compensated commands for random
@@ -591,8 +608,8 @@ impl Ctx<'_, '_> {
             return Ok(None);
         };
         let errors: Vec<f64> = match self.mode {
-            Mode::Planning(_) => self.planning_test(&node.bounds, cep)?,
-            Mode::Offline(_) => self.offline_test(&node.bounds, cep),
+            Mode::Planning(_) => self.planning_test(&node.id, &node.bounds, cep)?,
+            Mode::Offline(_) => self.offline_test(&node.id, &node.bounds, cep),
         };
         if errors.is_empty() {
             return Ok(None);
@@ -605,13 +622,18 @@ impl Ctx<'_, '_> {
         }))
     }
 
-    fn planning_test(&mut self, b: &Bounds, cep: &[f64]) -> Result<Vec<f64>, MeasureError> {
+    fn planning_test(
+        &mut self,
+        id: &str,
+        b: &Bounds,
+        cep: &[f64],
+    ) -> Result<Vec<f64>, MeasureError> {
         let model = expand(self.basis, self.n_params, cep);
         // The region's test points are one batch: chosen first, measured as one sequence.
         let mut commands = Vec::new();
         let mut targets = Vec::new();
         for u in design::test_design(self.opts.test_points) {
-            let Some((target, command)) = self.test_command(b, &u, &model) else {
+            let Some((target, command)) = self.test_command(id, b, &u, &model) else {
                 continue;
             };
             commands.push(command);
@@ -632,13 +654,14 @@ impl Ctx<'_, '_> {
     /// centre until it can.
     fn test_command(
         &mut self,
+        id: &str,
         b: &Bounds,
         u: &[f64; 3],
         model: &ErrorParams,
     ) -> Option<(nalgebra::Vector3<f64>, Vec<f64>)> {
         let nominal = ErrorParams::zeros(self.rig.chain.layout());
         let opts = CompensationOptions::default();
-        let seed = self.box_seed(b);
+        let seed = self.box_seed(id, b);
         for f in [1.0, 0.9, 0.75, 0.5] {
             let x = b.at_unit(&design::towards_centre(u, f));
             let Some(q) = self.pose_at(b, &x, seed.as_deref()) else {
@@ -654,16 +677,16 @@ impl Ctx<'_, '_> {
         None
     }
 
-    fn offline_test(&self, b: &Bounds, cep: &[f64]) -> Vec<f64> {
+    fn offline_test(&self, id: &str, b: &Bounds, cep: &[f64]) -> Vec<f64> {
         let held: Vec<&Observation> = self
-            .in_box(b)
+            .in_box(id, b)
             .into_iter()
             .enumerate()
             .filter(|(k, _)| k % 5 == 4)
-            .map(|(_, (o, _))| o)
+            .map(|(_, o)| o)
             .collect();
         let fitted = self
-            .fit_box(b, Some(cep), true)
+            .fit_box(id, b, Some(cep), true)
             .map(|(c, _, _)| c)
             .unwrap_or_else(|_| cep.to_vec());
         let model = expand(self.basis, self.n_params, &fitted);
@@ -693,10 +716,10 @@ impl Ctx<'_, '_> {
                 children.push(child);
                 continue;
             }
-            self.populate(&bounds, self.opts.per_region)
+            self.populate(&child.id, &bounds, self.opts.per_region)
                 .map_err(SplitError::Measure)?;
             let (cep, kappa, n) = self
-                .identify(&bounds, parent.as_deref())
+                .identify(&child.id, &bounds, parent.as_deref())
                 .map_err(SplitError::Cannot)?;
             child.cep = Some(cep);
             child.kappa = kappa;
