@@ -307,8 +307,8 @@ impl ContactProcedure {
     ) -> Result<Vec<f64>, DeviceError> {
         let here = self.table_here(core, motion).await?;
         let rise = [start[0], start[1], self.rise_z.min(start[2])];
-        let under = (here[0] - rise[0]).abs() <= AT_TARGET_MM
-            && (here[1] - rise[1]).abs() <= AT_TARGET_MM;
+        let under =
+            (here[0] - rise[0]).abs() <= AT_TARGET_MM && (here[1] - rise[1]).abs() <= AT_TARGET_MM;
         if !(under && here[2] < rise[2] - AT_TARGET_MM) {
             return motion.arm_to(q).await;
         }

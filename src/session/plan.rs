@@ -202,7 +202,11 @@ impl MoveTime {
         if !self.table_mm_s.is_finite() || d == 0.0 {
             return 0.0;
         }
-        let (v, a, b) = (self.table_mm_s, self.table_acc.max(1e-9), self.table_dec.max(1e-9));
+        let (v, a, b) = (
+            self.table_mm_s,
+            self.table_acc.max(1e-9),
+            self.table_dec.max(1e-9),
+        );
         // Distance to reach v and stop again.
         let ramp = v * v / (2.0 * a) + v * v / (2.0 * b);
         if d >= ramp {
@@ -226,35 +230,22 @@ impl MoveTime {
     }
 }
 
-/// Slack (mm) the default z window keeps below what the pass rule allows.
-const WINDOW_SLACK_MM: f64 = 0.5;
-
 /// The z window of [`Ordering::Optimised`] on `rig` (mm): how far below an earlier point's
-/// contact of its region a point's low ([`approach_low`]) may lie so that the table's pass
-/// rule still holds. A point's locating approach ends `margin` above its contact (the pass's
-/// top) and the next starts `margin` below the next low, travelling no lower than that unless
-/// it drops `clearance` under the current contact (which the window keeps within the rule);
-/// so `pass_retract − 2·margin` less a slack (never negative).
+/// nominal contact of its region a point's nominal contact may lie so that the table's pass
+/// rule holds. A point's locating approach ends `margin` above its nominal contact (the pass's
+/// top); the table then travels a `clearance` below the contact it found, which the arm's
+/// errors put up to a `margin` below the nominal one: so `pass_retract − 2·margin −
+/// clearance` (never negative). Where the rig's errors or a via pose's lower tip still take
+/// the table lower, the contact procedure starts a new pass (counted in the session report).
 pub fn z_window_mm(rig: &Rig) -> f64 {
     let c = ContactSettings::of(rig);
-    let retract = rig.devices.clone().unwrap_or_default().table.pass_retract_mm;
-    (retract - 2.0 * c.margin_mm - WINDOW_SLACK_MM).max(0.0)
-}
-
-/// The lowest table z (mm) the approach to `q` may need: its contact, or a via pose's tip
-/// where one lies lower (the approach then starts a margin below that) — over every side the
-/// moving joints may approach from, as the point's number (which sets the sides) is not known
-/// while ordering. The nominal marker height on a point-sensor rig.
-pub fn approach_low(rig: &Rig, q: &[f64], via_delta: f64) -> f64 {
-    let z = target_point(rig, q)[2];
-    if table_target(rig, q).is_none() {
-        return z;
-    }
-    let moving = approach_signs(rig, 0).iter().filter(|s| **s != 0).count();
-    (0..1usize << moving.min(12))
-        .filter_map(|n| table_target(rig, &via_pose(rig, q, &approach_signs(rig, n), via_delta)))
-        .map(|t| t[2])
-        .fold(z, f64::min)
+    let retract = rig
+        .devices
+        .clone()
+        .unwrap_or_default()
+        .table
+        .pass_retract_mm;
+    (retract - 2.0 * c.margin_mm - c.clearance_mm).max(0.0)
 }
 
 /// One planned measurement.
@@ -447,11 +438,7 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
     };
     let mut since_ref = 0usize;
     let metric = MoveTime::of(rig);
-    let via_delta = ContactSettings::of(rig).via_delta;
-    let layer = match opts.order {
-        Ordering::Optimised => opts.window_mm.unwrap_or_else(|| z_window_mm(rig)),
-        _ => opts.layer_mm,
-    };
+    let window = opts.window_mm.unwrap_or_else(|| z_window_mm(rig));
     if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
         push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
     }
@@ -461,8 +448,25 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             .filter(|(reg, _, _)| *reg == r)
             .map(|(_, q, t)| (q.clone(), *t))
             .collect();
-        let low = |p: &(Vec<f64>, [f64; 3])| approach_low(rig, &p.0, via_delta);
-        for (q, t) in order_region_by(mine, layer, opts.order, &metric, &low) {
+        let ordered = match opts.order {
+            Ordering::Optimised => {
+                let items = mine
+                    .into_iter()
+                    .map(|point| crate::session::order::Item {
+                        lows: vec![point.1[2]],
+                        point,
+                    })
+                    .collect();
+                let rule = crate::session::order::Rule {
+                    window_mm: window,
+                    strand_mm: window,
+                    slots: &[],
+                };
+                crate::session::order::optimised(items, &rule, &metric)
+            }
+            _ => layered(mine, opts.layer_mm, opts.order),
+        };
+        for (q, t) in ordered {
             if opts.reference_every > 0 && since_ref == opts.reference_every {
                 if let Some((rq, rt)) = &reference {
                     push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
@@ -484,22 +488,31 @@ pub fn order_region(
     layer_mm: f64,
     order: Ordering,
 ) -> Vec<(Vec<f64>, [f64; 3])> {
-    order_region_by(pts, layer_mm, order, &MoveTime::table_only(), &|p| p.1[2])
+    if order == Ordering::Optimised {
+        let items = pts
+            .into_iter()
+            .map(|point| crate::session::order::Item {
+                lows: vec![point.1[2]],
+                point,
+            })
+            .collect();
+        let rule = crate::session::order::Rule {
+            window_mm: layer_mm,
+            strand_mm: layer_mm,
+            slots: &[],
+        };
+        return crate::session::order::optimised(items, &rule, &MoveTime::table_only());
+    }
+    layered(pts, layer_mm, order)
 }
 
-/// [`order_region`] with the move-time metric and each point's low (the lowest table z its
-/// approach may need, [`approach_low`]) of [`Ordering::Optimised`].
-pub fn order_region_by(
+/// The layered orders: ascending z layers of `layer_mm`, then x-y within a layer.
+fn layered(
     mut pts: Vec<(Vec<f64>, [f64; 3])>,
     layer_mm: f64,
     order: Ordering,
-    metric: &MoveTime,
-    low: &dyn Fn(&(Vec<f64>, [f64; 3])) -> f64,
 ) -> Vec<(Vec<f64>, [f64; 3])> {
     pts.sort_by(|a, b| a.1[2].total_cmp(&b.1[2]));
-    if order == Ordering::Optimised {
-        return crate::session::order::optimised(pts, layer_mm, metric, low);
-    }
     let layer_mm = if layer_mm > 0.0 { layer_mm } else { f64::MAX };
     let z0 = pts.first().map_or(0.0, |p| p.1[2]);
     let layer = |p: &[f64; 3]| ((p[2] - z0) / layer_mm).floor() as i64;
@@ -859,7 +872,10 @@ impl Walk<'_> {
             t.clearance_s += self.axis_s(here[2], clear, s.table_mm_s);
         }
         let arm = self.q_at.as_deref().map_or(0.0, |q| self.arm_s(q, &via));
-        let table = self.table_s([here[0], here[1], clear], [p.table_mm[0], p.table_mm[1], clear]);
+        let table = self.table_s(
+            [here[0], here[1], clear],
+            [p.table_mm[0], p.table_mm[1], clear],
+        );
         if arm >= table {
             t.arm_s += arm;
         } else {
