@@ -400,3 +400,65 @@ fn shared_options_keep_their_help_per_command() {
         }
     }
 }
+
+#[test]
+fn plan_prints_the_breakdown_and_both_orders() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_csv = dir.path().join("p.csv");
+    let (ok, out, err) = rigcal(&[
+        "plan",
+        "--rig",
+        "rigs/rv-m2.toml",
+        "--points",
+        "150",
+        "--regions",
+        "2",
+        "--order",
+        "z-then-xy",
+        "--out",
+        s(&out_csv),
+    ]);
+    assert!(ok, "{err}");
+    for part in [
+        "arm moves",
+        "table moves",
+        "clearance moves",
+        "approaches",
+        "settling",
+        "drift references",
+    ] {
+        assert!(out.contains(part), "{part}: {out}");
+    }
+    // "estimated rig time A s … (z-then-xy order)", then "the optimised order …: B s; the
+    // z-then-xy order saves P % against it", P = 100 (1 − A / B) from the printed figures.
+    let number_after = |text: &str, key: &str| -> f64 {
+        let rest = &text[text.find(key).unwrap_or_else(|| panic!("{key}: {text}")) + key.len()..];
+        let num: String = rest
+            .trim_start()
+            .chars()
+            .take_while(|c| c.is_ascii_digit() || *c == '.' || *c == '-')
+            .collect();
+        num.parse().unwrap_or_else(|_| panic!("{key} {rest}"))
+    };
+    assert!(out.contains("(z-then-xy order)"), "{out}");
+    let a = number_after(&out, "estimated rig time");
+    let b = number_after(&out, "the optimised order of the same points:");
+    let saving = number_after(&out, "the z-then-xy order saves");
+    assert!(b < a, "the optimised order is quicker: {out}");
+    assert!((saving - 100.0 * (1.0 - a / b)).abs() < 0.1, "{out}");
+    let (ok, _, err) = rigcal(&[
+        "plan",
+        "--rig",
+        "rigs/rv-m2.toml",
+        "--points",
+        "10",
+        "--order",
+        "fastest",
+        "--out",
+        s(&out_csv),
+    ]);
+    assert!(
+        !ok && err.contains("z-then-xy, nearest-neighbour or optimised"),
+        "{err}"
+    );
+}

@@ -19,8 +19,8 @@ use rigcal::kinematics::{JointSpec, Robot};
 use rigcal::recording::{Recording, Status};
 use rigcal::rig::{Instrument, Rig};
 use rigcal::session::{
-    estimate, plan, registration_points, run_session, ContactSettings, PlanOptions, PlannedPoint,
-    Progress, RigSpeeds, SessionOptions,
+    estimate, plan, registration_points, run_session, z_window_mm, ContactSettings, Ordering,
+    PlanOptions, PlannedPoint, Progress, RigSpeeds, SessionOptions,
 };
 use rigcal::world::Scenario;
 
@@ -1206,6 +1206,10 @@ fn the_rig_time_estimate_matches_the_dry_run_clock_within_5_percent_on_both_rigs
         );
         let report = run_session(&rig, sim_devices(&sc), &pts, o, &Progress::Quiet).unwrap();
         let ratio = est.total_s / report.rig_time_s;
+        eprintln!(
+            "{scenario}: estimate {:.1} s, clock {:.1} s",
+            est.total_s, report.rig_time_s
+        );
         assert!(
             (0.95..=1.05).contains(&ratio),
             "{scenario}: estimate {:.1} s vs clock {:.1} s",
@@ -1215,5 +1219,140 @@ fn the_rig_time_estimate_matches_the_dry_run_clock_within_5_percent_on_both_rigs
         // The breakdown's parts add up to the total.
         assert!((est.breakdown.total_s() - est.total_s).abs() < 1e-6 * est.total_s);
         assert!(est.breakdown.approach_s > 0.0 && est.breakdown.arm_s > 0.0);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 24, ..ProptestConfig::default() })]
+    /// The optimised order reorders freely inside the z window, never beyond it: within each
+    /// region, no point's nominal contact lies more than the window below an earlier one's.
+    #[test]
+    fn the_optimised_order_never_breaks_the_ascending_z_rule_within_a_pass(
+        seed in 0u64..10_000, n in 20usize..200, regions in prop::sample::select(vec![1usize, 2, 4, 8]),
+        reference_every in prop::sample::select(vec![0usize, 7, 50]),
+    ) {
+        let rig = scenario().rig;
+        let window = z_window_mm(&rig);
+        let retract = rig.devices.clone().unwrap_or_default().table.pass_retract_mm;
+        let c = ContactSettings::of(&rig);
+        // The window leaves the pass rule its margins (see `z_window_mm`).
+        prop_assert!(window > 0.0 && window + 2.0 * c.margin_mm + c.clearance_mm <= retract);
+        let p = plan(&rig, &PlanOptions {
+            points: n, regions, reference_every, seed, order: Ordering::Optimised,
+            ..PlanOptions::default()
+        }).unwrap();
+        let mut top: std::collections::HashMap<&str, f64> = Default::default();
+        for pt in p.points.iter().filter(|p| p.region != "ref") {
+            let z = pt.table_mm[2];
+            if let Some(t) = top.get(pt.region.as_str()) {
+                prop_assert!(z >= t - window - 1e-9, "{}: z {z} after a top of {t}", pt.region);
+            }
+            let t = top.entry(pt.region.as_str()).or_insert(z);
+            *t = t.max(z);
+        }
+        // The same points as the paper's order, in another order.
+        let zxy = plan(&rig, &PlanOptions {
+            points: n, regions, reference_every, seed, order: Ordering::ZThenXY,
+            ..PlanOptions::default()
+        }).unwrap();
+        let key = |v: &[PlannedPoint]| {
+            let mut k: Vec<String> = v.iter().map(|p| format!("{}{:?}", p.region, p.table_mm)).collect();
+            k.sort();
+            k
+        };
+        prop_assert_eq!(key(&p.points), key(&zxy.points));
+    }
+}
+
+/// The two-phase final approach, by hand: locating from a margin below at the locating speed,
+/// the back-off at travel speed, the quick rise to the standoff (twice the locating touch's
+/// latency overshoot below it), the creep over the standoff at the latency-rule speed.
+#[test]
+fn the_estimate_counts_the_two_phase_approach_by_hand() {
+    let rig = scenario().rig;
+    let pts = points(&rig, 12, 9);
+    let p = pts.iter().find(|p| p.region != "ref").unwrap();
+    let (speeds, c) = (RigSpeeds::of(&rig), ContactSettings::of(&rig));
+    let one = estimate(&rig, std::slice::from_ref(p), &speeds, &c);
+    // rv-m2: 5 mm/s locating, (10 + 2) ms latency, 100 mm/s and 500 mm/s²; the back-off at
+    // the standoff (0.12 mm), so one quick move down to it.
+    let standoff = (2.0 * 5.0 * 0.012_f64).min(c.backoff_mm);
+    assert!(
+        (c.standoff_mm - standoff).abs() < 1e-12,
+        "{}",
+        c.standoff_mm
+    );
+    let v = 0.005 / 0.012;
+    assert!((speeds.approach_mm_s - v).abs() < 1e-12);
+    let trapezoid = |d: f64, v: f64| d / v + v / 500.0;
+    let triangle = |d: f64| {
+        if d > 0.0 {
+            2.0 * (d / 500.0).sqrt()
+        } else {
+            0.0
+        }
+    };
+    let by_hand = trapezoid(2.5, 5.0)
+        + triangle(c.backoff_mm)
+        + triangle(c.backoff_mm - standoff)
+        + trapezoid(standoff, v);
+    // The single-stage creep over the whole 0.3 mm back-off it replaced: 0.4 s more a point.
+    let single = trapezoid(2.5, 5.0) + triangle(0.3) + trapezoid(0.3, v);
+    assert!(single - by_hand > 0.4, "{single} vs {by_hand}");
+    assert!(
+        (one.breakdown.approach_s - by_hand).abs() < 1e-3,
+        "{} s vs {by_hand} s by hand",
+        one.breakdown.approach_s
+    );
+}
+
+/// On the same points the optimised order's planned rig time is well below the paper's order
+/// (the x-y table moves, which dominate, shortened inside the z window), and the dry run's
+/// clock agrees with both estimates.
+#[test]
+fn the_optimised_order_saves_rig_time_against_z_then_xy_planned_and_on_the_clock() {
+    let sc = scenario();
+    let rig = sc.rig.clone();
+    let (speeds, c) = (RigSpeeds::of(&rig), ContactSettings::of(&rig));
+    let plan_of = |order| {
+        plan(
+            &rig,
+            &PlanOptions {
+                points: 300,
+                regions: 2,
+                seed: 4,
+                order,
+                ..PlanOptions::default()
+            },
+        )
+        .unwrap()
+        .points
+    };
+    let (opt, zxy) = (plan_of(Ordering::Optimised), plan_of(Ordering::ZThenXY));
+    let (a, b) = (
+        estimate(&rig, &opt, &speeds, &c),
+        estimate(&rig, &zxy, &speeds, &c),
+    );
+    assert!(
+        a.breakdown.table_s < 0.85 * b.breakdown.table_s && a.total_s < 0.92 * b.total_s,
+        "optimised {} s (table {:.0} s) vs z-then-xy {} s (table {:.0} s)",
+        a.total_s,
+        a.breakdown.table_s,
+        b.total_s,
+        b.breakdown.table_s
+    );
+    for pts in [&opt[..60], &zxy[..60]] {
+        let dir = tempfile::tempdir().unwrap();
+        let o = options(dir.path());
+        let reg = registration_points(&rig, o.registration_points, o.seed);
+        let e = estimate(&rig, &[reg, pts.to_vec()].concat(), &speeds, &c);
+        let report = run_session(&rig, sim_devices(&sc), pts, o, &Progress::Quiet).unwrap();
+        let ratio = e.total_s / report.rig_time_s;
+        assert!(
+            (0.95..=1.05).contains(&ratio),
+            "estimate {:.1} s vs clock {:.1} s",
+            e.total_s,
+            report.rig_time_s
+        );
     }
 }

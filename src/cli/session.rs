@@ -44,6 +44,9 @@ pub struct Args {
     /// Drift-reference interval when planning here (0: none).
     #[arg(long, default_value_t = 50)]
     reference_every: usize,
+    /// Order within a region when planning here (see `rigcal plan --help`).
+    #[arg(long, default_value = "optimised")]
+    order: crate::session::Ordering,
     /// Poses of the registration step.
     #[arg(long, default_value_t = 12)]
     registration_points: usize,
@@ -85,6 +88,7 @@ pub fn run(a: Args) -> Result<()> {
         &ContactSettings::of(&rig),
     );
     println!("{}", super::plan::describe(&est));
+    println!("{}", super::plan::breakdown(&est));
     let clock = if a.real_time {
         SimClock::Real
     } else {
@@ -103,6 +107,11 @@ pub fn run(a: Args) -> Result<()> {
     let progress = Progress::auto(points.len());
     let report = run_session(&rig, opened, &points, opts, &progress)?;
     print_report(&a.out, &report, virtual_clock);
+    println!(
+        "estimated {:.0} s beside it ({:+.1} %)",
+        est.total_s,
+        100.0 * (est.total_s / report.rig_time_s.max(1e-9) - 1.0)
+    );
     Ok(())
 }
 
@@ -133,10 +142,11 @@ fn session_plan(a: &Args, rig: &Rig, seed: u64) -> Result<Vec<crate::session::Pl
         let points = match (&a.plan, a.points) {
             (Some(p), None) => read_plan(p, rig)?,
             (None, Some(n)) => {
-                let p = plan(
-                    rig,
-                    &super::plan::options(n, a.regions, a.reference_every, seed),
-                )?;
+                let opts = crate::session::PlanOptions {
+                    order: a.order,
+                    ..super::plan::options(n, a.regions, a.reference_every, seed)
+                };
+                let p = plan(rig, &opts)?;
                 super::plan::report_dropped(rig, &p, &plan_path)?;
                 p.points
             }
@@ -202,7 +212,7 @@ fn print_report(
     virtual_clock: bool,
 ) {
     println!(
-        "session {}: {} points, {} measured{}, {} skipped, {} via rows, {} retries, {} faults cleared",
+        "session {}: {} points, {} measured{}, {} skipped, {} via rows, {} retries, {} faults cleared, {} extra passes",
         out.display(),
         report.points,
         report.ok,
@@ -214,7 +224,8 @@ fn print_report(
         report.skipped.len(),
         report.via,
         report.retries,
-        report.faults_cleared.len()
+        report.faults_cleared.len(),
+        report.extra_passes
     );
     for (p, why) in &report.skipped {
         println!("  point {p} skipped: {why}");

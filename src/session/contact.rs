@@ -1,9 +1,13 @@
 //! The contact procedure of the table-and-panel rig, per point: the arm goes to a pre-approach
-//! (via) pose while the table travels to the approach start — down to a clearance height
-//! first, then x-y with the arm (both at once) — the arm goes on to the target, and a
-//! two-stage contact follows: a locating approach at the locating speed, a back-off, and the
-//! final approach at the latency-rule speed (conventions §8). Its thresholds are
-//! [`ContactSettings`] (`[devices.contact]` of the rig file).
+//! (via) pose while the table travels to the approach start — down to its travel height first
+//! ([`travel_height`]: a clearance below the current contact, or straight to the next approach
+//! start when that is lower), then x-y with the arm (both at once) — the arm goes on to the
+//! target while the table rises to the approach start (both at once: that start lies a margin
+//! below the tip at the via pose and at the target), and a two-stage contact follows: a
+//! locating approach at the locating speed, a back-off, a quick rise to the standoff just
+//! below the located contact, and the final approach from there at the latency-rule speed
+//! (conventions §8). Its thresholds are [`ContactSettings`] (`[devices.contact]` of the rig
+//! file).
 //!
 //! The table keeps ascending z within a pass (the safety wrapper refuses anything lower than
 //! the pass's top minus the retract allowance): a new pass begins with each region, each
@@ -14,7 +18,9 @@ use crate::devices::{DeviceError, DeviceName};
 use crate::rig::{Instrument, Rig};
 use crate::session::core::{Outcome, SessionCore};
 use crate::session::motion::{Motion, IO};
-use crate::session::plan::{approach_signs, table_target, via_pose, ContactSettings};
+use crate::session::plan::{
+    approach_signs, table_target, travel_height, via_pose, ContactSettings,
+};
 use crate::session::recovery::{arm_move_lost, handle};
 use crate::session::run::SessionError;
 
@@ -35,6 +41,9 @@ pub(crate) struct ContactProcedure {
     retract_mm: f64,
     pass_region: Option<String>,
     pass_top: Option<f64>,
+    /// The current point's lower approach start (its own, or its via pose's), the height the
+    /// table rises to while the arm goes from the via pose onto the target (mm).
+    rise_z: f64,
 }
 
 /// Time allowed for an approach over `d` mm at `v` mm/s.
@@ -66,6 +75,7 @@ impl ContactProcedure {
             retract_mm: cfg.table.pass_retract_mm,
             pass_region: None,
             pass_top: None,
+            rise_z: 0.0,
         }
     }
 
@@ -92,6 +102,7 @@ impl ContactProcedure {
         // start: the panel must never sit above the pin while the arm moves onto the target.
         let via_z = table_target(rig, &via).map_or(start[2], |t| t[2] - c.margin_mm);
         let via_start = [start[0], start[1], start[2].min(via_z).max(0.0)];
+        self.rise_z = via_start[2];
         if let Some(out) = self.via(core, motion, region, &via, via_start).await? {
             return Ok((q.to_vec(), out));
         }
@@ -161,8 +172,8 @@ impl ContactProcedure {
         }
     }
 
-    /// From wherever the table stands to the approach start `start` while the arm goes to
-    /// `via`: down to a clearance height first, then x-y with the arm (at once), then up.
+    /// From wherever the table stands towards the approach start `start` while the arm goes
+    /// to `via`: down to the travel height first, then x-y with the arm (at once).
     async fn travel(
         &mut self,
         core: &mut SessionCore<'_>,
@@ -172,9 +183,10 @@ impl ContactProcedure {
     ) -> Result<Vec<f64>, DeviceError> {
         let c = self.settings;
         let here = self.table_here(core, motion).await?;
-        // Below the current height, the next approach start and the via pose's tip.
+        // A clearance below the current contact, and no higher than the next approach start
+        // (below the via pose's tip too).
         let via_z = table_target(core.rig, via).map_or(start[2], |t| t[2] - c.margin_mm);
-        let clear = (here[2].min(start[2]).min(via_z) - c.clearance_mm).max(0.0);
+        let clear = travel_height(here[2], start[2].min(via_z), c.clearance_mm);
         self.new_pass_below(core, motion, clear).await?;
         if here[2] > clear + AT_TARGET_MM {
             self.table_to(core, motion, [here[0], here[1], clear])
@@ -207,7 +219,7 @@ impl ContactProcedure {
         let c = self.settings;
         if commanded.is_none() {
             core.before_measurement(attempt);
-            let done = motion.arm_to(q).await?;
+            let done = self.arm_onto_target(core, motion, q, start).await?;
             core.arm_q = Some(done.clone());
             *commanded = Some(done);
         }
@@ -243,17 +255,24 @@ impl ContactProcedure {
                 first.touch.u_mm, first.touch.v_mm, c.max_offset_mm
             )));
         }
+        // Off the panel (as far as ever, so the release is seen before the final approach),
+        // then quickly back up to the standoff: only that last stretch is crept.
         let back = (first.table_mm[2] - c.backoff_mm).max(0.0);
         motion.table_speed(self.travel_mm_s).await?;
         self.start_table(motion, [xy[0], xy[1], back]).await?;
         motion.table_reached().await?;
+        let from = (first.table_mm[2] - c.standoff_mm).max(back);
+        if from > back + AT_TARGET_MM {
+            self.start_table(motion, [xy[0], xy[1], from]).await?;
+            motion.table_reached().await?;
+        }
         let top = (first.table_mm[2] + 2.0 * c.backoff_mm).min(self.travel_z);
         let last = Approach {
             xy_mm: xy,
-            z_from_mm: back,
+            z_from_mm: from,
             z_to_mm: top,
             speed_mm_s: self.approach_mm_s,
-            timeout: approach_timeout(top - back, self.approach_mm_s),
+            timeout: approach_timeout(top - from, self.approach_mm_s),
         };
         let fin = motion.contact(&last).await;
         self.raise_top(top);
@@ -261,13 +280,44 @@ impl ContactProcedure {
         core.table_at = Some(fin.table_mm);
         let du = (fin.touch.u_mm - first.touch.u_mm).abs();
         let dv = (fin.touch.v_mm - first.touch.v_mm).abs();
-        if du.max(dv) > c.max_disagreement_mm || fin.table_mm[2] < back - c.z_tolerance_mm {
+        if fin.table_mm[2] <= from + c.z_tolerance_mm {
+            return Err(bad_touch(format!(
+                "final touch at its start (z {:.3} mm): the pin was on the panel, the standoff of {} mm below the locating touch too small",
+                fin.table_mm[2], c.standoff_mm
+            )));
+        }
+        if du.max(dv) > c.max_disagreement_mm || fin.table_mm[2] < from - c.z_tolerance_mm {
             return Err(bad_touch(format!(
                 "final touch at ({:.2}, {:.2}) mm, z {:.3} mm disagrees with the locating touch at ({:.2}, {:.2}) mm, z {:.3} mm",
                 fin.touch.u_mm, fin.touch.v_mm, fin.table_mm[2], first.touch.u_mm, first.touch.v_mm, first.table_mm[2]
             )));
         }
         Ok(fin)
+    }
+
+    /// The arm onto the target `q`. Where the table stands below the rise height right under
+    /// the approach start (after the travel), it rises there at the same time: that height is
+    /// a margin below the tip at the via pose and at the target alike.
+    async fn arm_onto_target(
+        &mut self,
+        core: &mut SessionCore<'_>,
+        motion: &Motion,
+        q: &[f64],
+        start: [f64; 3],
+    ) -> Result<Vec<f64>, DeviceError> {
+        let here = self.table_here(core, motion).await?;
+        let rise = [start[0], start[1], self.rise_z.min(start[2])];
+        let under =
+            (here[0] - rise[0]).abs() <= AT_TARGET_MM && (here[1] - rise[1]).abs() <= AT_TARGET_MM;
+        if !(under && here[2] < rise[2] - AT_TARGET_MM) {
+            return motion.arm_to(q).await;
+        }
+        motion.table_speed(self.travel_mm_s).await?;
+        self.start_table(motion, rise).await?;
+        core.table_at = None;
+        let (done, at) = motion.arm_and_table(q).await?;
+        core.table_at = Some(at);
+        Ok(done)
     }
 
     /// Where the table stands: as last seen, or read.

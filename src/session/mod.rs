@@ -17,6 +17,7 @@ mod core;
 pub mod journal;
 pub mod measurer;
 mod motion;
+mod order;
 pub mod plan;
 mod progress;
 mod recovery;
@@ -30,8 +31,8 @@ pub use measurer::{
 };
 pub use plan::{
     estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
-    ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint, RigSpeeds,
-    RigTimeEstimate,
+    z_window_mm, ContactSettings, MoveTime, Ordering, Plan, PlanError, PlanOptions, PlannedPoint,
+    RigSpeeds, RigTimeEstimate, TimeBreakdown,
 };
 pub use progress::Progress;
 pub use run::{run_session, Session, SessionError, SessionOptions, SessionReport};

@@ -5,10 +5,14 @@
 //!   [`Plan::dropped`] with its reason (the CLI prints them, never silently).
 //! - Regions: the joint space of the first three moving joints split into boxes by the division
 //!   rule (halve the widest dimension, conventions §5); each point belongs to one box.
-//! - Order within a region: ascending table z in layers of [`PlanOptions::layer_mm`] (thin enough
-//!   that the table's ascending-z rule, `pass_retract_mm`, holds between consecutive approaches
-//!   with the approach margin and the travel clearance of [`ContactSettings`]),
-//!   nearest neighbour in x-y within a layer. Regions are visited in a seeded random order so
+//! - Order within a region, [`Ordering`]: the paper's ascending table z in layers of
+//!   [`PlanOptions::layer_mm`], then x, then y ([`Ordering::ZThenXY`]); or the default
+//!   [`Ordering::Optimised`]: no point more than the z window ([`z_window_mm`]) below any earlier
+//!   point of its region (so the table's ascending-z rule, `pass_retract_mm`, holds between
+//!   approaches with the approach margin of [`ContactSettings`] and room for the via pose),
+//!   ordered inside that window to cut the move time ([`MoveTime`]: the slower of the table's
+//!   x-y profiles and the arm's largest joint change) by a greedy start and Or-opt/2-opt passes.
+//!   Regions are visited in a seeded random order so
 //!   that time is decorrelated from position, and a drift-reference pose (region `ref`) is
 //!   measured first and then every [`PlanOptions::reference_every`] points.
 //! - Approach directions: each moving joint reaches its target from alternating sides
@@ -80,10 +84,14 @@ pub struct PlanOptions {
     pub reference_every: usize,
     /// Seed of the random draws.
     pub seed: u64,
-    /// Height of a z layer within a region (mm).
+    /// Height of a z layer within a region (mm), for [`Ordering::ZThenXY`] and
+    /// [`Ordering::NearestNeighbour`].
     pub layer_mm: f64,
-    /// Order within a layer.
+    /// Order within a region.
     pub order: Ordering,
+    /// The z window of [`Ordering::Optimised`] (mm): how far a point may lie below an earlier
+    /// point of its region; `None`: [`z_window_mm`] of the rig.
+    pub window_mm: Option<f64>,
     /// Room the contact needs below and above the nominal contact height in the table's z
     /// travel (approach margin + travel clearance, mm); points with less are dropped.
     pub z_room_mm: f64,
@@ -103,20 +111,141 @@ impl Default for PlanOptions {
             reference_every: 50,
             seed: 1,
             layer_mm: 2.0,
-            order: Ordering::NearestNeighbour,
+            order: Ordering::Optimised,
+            window_mm: None,
             z_room_mm: 5.0,
             xy_room_mm: 5.0,
         }
     }
 }
 
-/// Order of the points within a z layer.
+/// Order of the points within a region.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ordering {
-    /// Nearest neighbour in x-y (the default).
+    /// Ascending z layers, nearest neighbour in x-y within a layer.
     NearestNeighbour,
-    /// The paper's order: z, then x, then y.
+    /// The paper's order: z layers, then x, then y.
     ZThenXY,
+    /// Inside the z window of the ascending-z rule, the order of least move time (the
+    /// default; see the module docs).
+    Optimised,
+}
+
+impl Ordering {
+    /// The name on the command line (`z-then-xy`, `nearest-neighbour`, `optimised`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Ordering::NearestNeighbour => "nearest-neighbour",
+            Ordering::ZThenXY => "z-then-xy",
+            Ordering::Optimised => "optimised",
+        }
+    }
+}
+
+impl std::str::FromStr for Ordering {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "z-then-xy" => Ok(Ordering::ZThenXY),
+            "nearest-neighbour" => Ok(Ordering::NearestNeighbour),
+            "optimised" | "optimized" => Ok(Ordering::Optimised),
+            _ => Err(format!(
+                "unknown order `{s}`: z-then-xy, nearest-neighbour or optimised"
+            )),
+        }
+    }
+}
+
+/// The time the rig needs between two points (s), the metric [`Ordering::Optimised`] orders
+/// by: arm and table move together, so the slower counts — the table's x and y profiles
+/// (trapezoidal, at the rig file's velocity and accelerations) against the arm's largest joint
+/// change at its joint speed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MoveTime {
+    /// Table profile velocity (mm/s); infinite on a rig without a table.
+    pub table_mm_s: f64,
+    /// Table acceleration (mm/s²).
+    pub table_acc: f64,
+    /// Table deceleration (mm/s²).
+    pub table_dec: f64,
+    /// Arm joint speed (deg/s); infinite to order by the table alone.
+    pub arm_deg_s: f64,
+}
+
+impl MoveTime {
+    /// The metric of `rig`'s devices (the table's terms only on the table rig).
+    pub fn of(rig: &Rig) -> MoveTime {
+        let s = RigSpeeds::of(rig);
+        let table = matches!(rig.instrument, Instrument::TablePanel(_));
+        MoveTime {
+            table_mm_s: if table { s.table_mm_s } else { f64::INFINITY },
+            table_acc: s.table_acc,
+            table_dec: s.table_dec,
+            arm_deg_s: s.arm_deg_s,
+        }
+    }
+
+    /// The table alone, on the default drive profile (for batches without joints).
+    pub fn table_only() -> MoveTime {
+        let t = crate::rig::devices::TableConfig::default();
+        MoveTime {
+            table_mm_s: t.profile_velocity_mm_s,
+            table_acc: t.profile_acceleration_mm_s2,
+            table_dec: t.profile_deceleration_mm_s2,
+            arm_deg_s: f64::INFINITY,
+        }
+    }
+
+    /// One axis's trapezoidal (or triangular) profile over `d` mm (s).
+    pub(crate) fn axis_s(&self, d: f64) -> f64 {
+        let d = d.abs();
+        if !self.table_mm_s.is_finite() || d == 0.0 {
+            return 0.0;
+        }
+        let (v, a, b) = (
+            self.table_mm_s,
+            self.table_acc.max(1e-9),
+            self.table_dec.max(1e-9),
+        );
+        // Distance to reach v and stop again.
+        let ramp = v * v / (2.0 * a) + v * v / (2.0 * b);
+        if d >= ramp {
+            v / a / 2.0 + v / b / 2.0 + d / v
+        } else {
+            // Triangular: peak speed w with w²/2a + w²/2b = d.
+            let w = (2.0 * d * a * b / (a + b)).sqrt();
+            w / a + w / b
+        }
+    }
+
+    /// From the point at (`qa`, `ta`) to the one at (`qb`, `tb`) (s).
+    pub fn between(&self, qa: &[f64], ta: &[f64; 3], qb: &[f64], tb: &[f64; 3]) -> f64 {
+        let table = self.axis_s(ta[0] - tb[0]).max(self.axis_s(ta[1] - tb[1]));
+        let arm = if self.arm_deg_s.is_finite() {
+            largest_joint_change_deg(qa, qb) / self.arm_deg_s.max(1e-9)
+        } else {
+            0.0
+        };
+        table.max(arm)
+    }
+}
+
+/// The z window of [`Ordering::Optimised`] on `rig` (mm): how far below an earlier point's
+/// nominal contact of its region a point's nominal contact may lie so that the table's pass
+/// rule holds. A point's locating approach ends `margin` above its nominal contact (the pass's
+/// top); the table then travels a `clearance` below the contact it found, which the arm's
+/// errors put up to a `margin` below the nominal one: so `pass_retract − 2·margin −
+/// clearance` (never negative). Where the rig's errors or a via pose's lower tip still take
+/// the table lower, the contact procedure starts a new pass (counted in the session report).
+pub fn z_window_mm(rig: &Rig) -> f64 {
+    let c = ContactSettings::of(rig);
+    let retract = rig
+        .devices
+        .clone()
+        .unwrap_or_default()
+        .table
+        .pass_retract_mm;
+    (retract - 2.0 * c.margin_mm - c.clearance_mm).max(0.0)
 }
 
 /// One planned measurement.
@@ -308,6 +437,8 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
         });
     };
     let mut since_ref = 0usize;
+    let metric = MoveTime::of(rig);
+    let window = opts.window_mm.unwrap_or_else(|| z_window_mm(rig));
     if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
         push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
     }
@@ -317,7 +448,25 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             .filter(|(reg, _, _)| *reg == r)
             .map(|(_, q, t)| (q.clone(), *t))
             .collect();
-        for (q, t) in order_region(mine, opts.layer_mm, opts.order) {
+        let ordered = match opts.order {
+            Ordering::Optimised => {
+                let items = mine
+                    .into_iter()
+                    .map(|point| crate::session::order::Item {
+                        lows: vec![point.1[2]],
+                        point,
+                    })
+                    .collect();
+                let rule = crate::session::order::Rule {
+                    window_mm: window,
+                    strand_mm: window,
+                    slots: &[],
+                };
+                crate::session::order::optimised(items, &rule, &metric)
+            }
+            _ => layered(mine, opts.layer_mm, opts.order),
+        };
+        for (q, t) in ordered {
             if opts.reference_every > 0 && since_ref == opts.reference_every {
                 if let Some((rq, rt)) = &reference {
                     push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
@@ -331,8 +480,34 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
     Ok(Plan { points, dropped })
 }
 
-/// Orders one region's points: ascending z layers, then x-y within a layer.
+/// Orders one region's points: ascending z layers, then x-y within a layer; for
+/// [`Ordering::Optimised`], `layer_mm` is the z window and the metric the table's alone
+/// ([`order_region_by`] with the arm's too).
 pub fn order_region(
+    pts: Vec<(Vec<f64>, [f64; 3])>,
+    layer_mm: f64,
+    order: Ordering,
+) -> Vec<(Vec<f64>, [f64; 3])> {
+    if order == Ordering::Optimised {
+        let items = pts
+            .into_iter()
+            .map(|point| crate::session::order::Item {
+                lows: vec![point.1[2]],
+                point,
+            })
+            .collect();
+        let rule = crate::session::order::Rule {
+            window_mm: layer_mm,
+            strand_mm: layer_mm,
+            slots: &[],
+        };
+        return crate::session::order::optimised(items, &rule, &MoveTime::table_only());
+    }
+    layered(pts, layer_mm, order)
+}
+
+/// The layered orders: ascending z layers of `layer_mm`, then x-y within a layer.
+fn layered(
     mut pts: Vec<(Vec<f64>, [f64; 3])>,
     layer_mm: f64,
     order: Ordering,
@@ -356,7 +531,7 @@ pub fn order_region(
                 group.sort_by(|a, b| a.1[0].total_cmp(&b.1[0]).then(a.1[1].total_cmp(&b.1[1])));
                 out.extend(group);
             }
-            Ordering::NearestNeighbour => {
+            Ordering::NearestNeighbour | Ordering::Optimised => {
                 while !group.is_empty() {
                     let from = at.unwrap_or([group[0].1[0], group[0].1[1]]);
                     let k = (0..group.len())
@@ -439,9 +614,26 @@ pub struct ContactSettings {
     /// more, and the contact is repeated.
     pub max_disagreement_mm: f64,
     /// Tolerance of the z checks (mm): a locating touch within it of the approach start means
-    /// the pin was already on the panel; a final touch more than it below the back-off height
-    /// cannot be right.
+    /// the pin was already on the panel; a final touch more than it below the final approach's
+    /// start cannot be right.
     pub z_tolerance_mm: f64,
+    /// The final approach starts this far below the located contact (mm), reached at travel
+    /// speed after the back-off: the locating touch reads at most `locate speed × (panel + bus
+    /// latency)` above the true contact, so twice that (at least [`MIN_STANDOFF_MM`], at most
+    /// the back-off) leaves the pin clear while only the last fraction of a millimetre is
+    /// crept at the latency-rule speed.
+    pub standoff_mm: f64,
+}
+
+/// The least standoff of the final approach (mm).
+pub const MIN_STANDOFF_MM: f64 = 0.05;
+
+/// The final approach's standoff for a locating approach at `locate_mm_s` with the touch read
+/// `latency_s` after contact, within `backoff_mm` (see [`ContactSettings::standoff_mm`]).
+pub fn final_standoff_mm(locate_mm_s: f64, latency_s: f64, backoff_mm: f64) -> f64 {
+    (2.0 * locate_mm_s * latency_s)
+        .max(MIN_STANDOFF_MM)
+        .min(backoff_mm)
 }
 
 impl Default for ContactSettings {
@@ -451,14 +643,22 @@ impl Default for ContactSettings {
 }
 
 impl ContactSettings {
-    /// The rig file's `[devices.contact]` (its defaults when the file has none).
+    /// The rig file's `[devices.contact]` (its defaults when the file has none), the standoff
+    /// from its panel and bus latencies.
     pub fn of(rig: &Rig) -> Self {
-        ContactSettings::from_config(&rig.devices.clone().unwrap_or_default().contact)
+        let cfg = rig.devices.clone().unwrap_or_default();
+        let latency_s = (cfg.panel.latency_ms + cfg.table.bus_latency_ms).max(0.0) / 1000.0;
+        let mut s = ContactSettings::from_config(&cfg.contact);
+        s.standoff_mm = final_standoff_mm(s.fast_mm_s, latency_s, s.backoff_mm);
+        s
     }
 
-    /// From the `[devices.contact]` section.
+    /// From the `[devices.contact]` section (the standoff from the default latencies).
     pub fn from_config(c: &crate::rig::devices::ContactConfig) -> Self {
+        let d = crate::rig::devices::DevicesConfig::default();
+        let latency_s = (d.panel.latency_ms + d.table.bus_latency_ms) / 1000.0;
         ContactSettings {
+            standoff_mm: final_standoff_mm(c.locate_speed_mm_s, latency_s, c.backoff_mm),
             margin_mm: c.margin_mm,
             fast_mm_s: c.locate_speed_mm_s,
             backoff_mm: c.backoff_mm,
@@ -556,20 +756,27 @@ impl TimeBreakdown {
         self.settling_s += o.settling_s;
     }
 
+    /// The parts with their names, in the order [`TimeBreakdown::describe`] gives them (s).
+    pub fn parts(&self) -> [(&'static str, f64); 7] {
+        [
+            ("arm moves", self.arm_s),
+            ("table moves", self.table_s),
+            ("clearance moves", self.clearance_s),
+            ("approaches", self.approach_s),
+            ("settling", self.settling_s),
+            ("registration", self.registration_s),
+            ("drift references", self.reference_s),
+        ]
+    }
+
     /// One line: each part in s and as a share of the total.
     pub fn describe(&self) -> String {
         let t = self.total_s().max(1e-9);
-        let part = |name: &str, v: f64| format!("{name} {v:.0} s ({:.0} %)", 100.0 * v / t);
-        [
-            part("arm moves", self.arm_s),
-            part("table moves", self.table_s),
-            part("clearance moves", self.clearance_s),
-            part("approaches", self.approach_s),
-            part("settling", self.settling_s),
-            part("registration", self.registration_s),
-            part("drift references", self.reference_s),
-        ]
-        .join(", ")
+        self.parts()
+            .iter()
+            .map(|(name, v)| format!("{name} {v:.0} s ({:.0} %)", 100.0 * v / t))
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 }
 
@@ -596,6 +803,13 @@ fn largest_joint_change_deg(a: &[f64], b: &[f64]) -> f64 {
         .zip(b)
         .map(|(x, y)| (x - y).abs().to_degrees())
         .fold(0.0, f64::max)
+}
+
+/// The height the table travels in x-y at (mm): a clearance below the current contact `here_z`
+/// (the pin there must not drag over the panel), or lower, at the next approach start
+/// `start_z`, when that is lower still (already a margin below the next pin and its via pose).
+pub fn travel_height(here_z: f64, start_z: f64, clearance_mm: f64) -> f64 {
+    (here_z - clearance_mm).min(start_z).max(0.0)
 }
 
 /// Device exchanges of one point whose latencies the session waits out (counted from the
@@ -639,38 +853,56 @@ impl Walk<'_> {
             .fold(0.0, f64::max)
     }
 
-    /// One point of the table-and-panel rig.
+    /// One point of the table-and-panel rig, as [`crate::session`]'s contact procedure makes
+    /// it: the table down to its travel height (a clearance below the current contact, or the
+    /// approach start when that is lower still), x-y beside the arm's move to the via pose, up
+    /// to the approach start beside the arm's move onto the target, the locating approach, the
+    /// back-off, the quick rise to the standoff, the final approach.
     fn contact_point(&mut self, p: &PlannedPoint) -> TimeBreakdown {
         let (c, s) = (self.contact, self.speeds);
         let mut t = TimeBreakdown::default();
         let signs = approach_signs(self.rig, p.point);
         let via = via_pose(self.rig, &p.q, &signs, c.via_delta);
-        let start = [
-            p.table_mm[0],
-            p.table_mm[1],
-            (p.table_mm[2] - c.margin_mm).max(0.0),
-        ];
-        let via_z = table_target(self.rig, &via).map_or(start[2], |v| v[2] - c.margin_mm);
-        let start_z = start[2].min(via_z).max(0.0);
+        let start_z = (p.table_mm[2] - c.margin_mm).max(0.0);
+        let via_z = table_target(self.rig, &via).map_or(start_z, |v| v[2] - c.margin_mm);
+        let rise_z = start_z.min(via_z).max(0.0);
         let here = self.table_at;
-        let clear = (here[2].min(start_z) - c.clearance_mm).max(0.0);
+        let clear = travel_height(here[2], rise_z, c.clearance_mm);
         if here[2] > clear + 1e-3 {
             t.clearance_s += self.axis_s(here[2], clear, s.table_mm_s);
         }
         let arm = self.q_at.as_deref().map_or(0.0, |q| self.arm_s(q, &via));
-        let table = self.table_s([here[0], here[1], clear], [start[0], start[1], clear]);
+        let table = self.table_s(
+            [here[0], here[1], clear],
+            [p.table_mm[0], p.table_mm[1], clear],
+        );
         if arm >= table {
             t.arm_s += arm;
         } else {
             t.table_s += table;
         }
-        t.arm_s += self.arm_s(&via, &p.q);
-        t.clearance_s += self.axis_s(clear, start[2], s.table_mm_s);
+        // The arm onto the target while the table rises to the lower of both approach starts.
+        let onto = self.arm_s(&via, &p.q);
+        let rise = if rise_z > clear + 1e-3 {
+            self.axis_s(clear, rise_z, s.table_mm_s)
+        } else {
+            0.0
+        };
+        if onto >= rise {
+            t.arm_s += onto;
+        } else {
+            t.clearance_s += rise;
+        }
+        if start_z > rise_z + 1e-3 {
+            t.clearance_s += self.axis_s(rise_z, start_z, s.table_mm_s);
+        }
         let contact_z = p.table_mm[2];
         let back = contact_z - c.backoff_mm;
-        t.approach_s += self.axis_s(start[2], contact_z, c.fast_mm_s)
+        let standoff = contact_z - c.standoff_mm;
+        t.approach_s += self.axis_s(start_z, contact_z, c.fast_mm_s)
             + self.axis_s(contact_z, back, s.table_mm_s)
-            + self.axis_s(back, contact_z, s.approach_mm_s);
+            + self.axis_s(back, standoff, s.table_mm_s)
+            + self.axis_s(standoff, contact_z, s.approach_mm_s);
         t.settling_s += 2.0 * s.touch_latency_s
             + ARM_REPLIES_PER_POINT * s.arm_reply_s
             + CAN_ROUNDS_PER_POINT * s.bus_latency_s;
