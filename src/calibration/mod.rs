@@ -21,6 +21,7 @@ mod neural;
 pub mod paper_regime;
 pub mod path_figures;
 pub mod rig_check;
+pub mod sec7;
 mod through_session;
 mod variable;
 

@@ -549,7 +549,7 @@ impl Ctx<'_, '_> {
             .filter(|(k, _)| !(hold_out && k % 5 == 4))
             .map(|(_, (o, _))| o.clone())
             .collect();
-        let min_points = (self.basis.len() / 3 + 1).max(self.opts.per_region / 2);
+        let min_points = self.min_points();
         if obs.len() < min_points {
             return Err(format!(
                 "only {} measurable points in the region ({} needed)",
@@ -574,6 +574,11 @@ impl Ctx<'_, '_> {
         }
         let cep = self.basis.iter().map(|&i| r.params.get(i)).collect();
         Ok((cep, r.kappa, obs.len()))
+    }
+
+    /// Measurements a region needs for its fit.
+    fn min_points(&self) -> usize {
+        (self.basis.len() / 3 + 1).max(self.opts.per_region / 2)
     }
 
     fn identify(
@@ -695,14 +700,29 @@ impl Ctx<'_, '_> {
             }
             self.populate(&bounds, self.opts.per_region)
                 .map_err(SplitError::Measure)?;
-            let (cep, kappa, n) = self
-                .identify(&bounds, parent.as_deref())
-                .map_err(SplitError::Cannot)?;
+            let (cep, kappa, n) = match self.identify(&bounds, parent.as_deref()) {
+                Ok(fit) => fit,
+                // The rig cannot measure enough of this half (table travel, the pin rule): it
+                // becomes a region without measurements of its own, as on the paper's rig
+                // (seed 000 section 7): its neighbours' mean CEPs, the learner generalises there.
+                Err(reason) if self.in_box(&bounds).len() < self.min_points() => {
+                    child.note = Some(format!("unmeasurable: {reason}"));
+                    child.borrowed_from = Some(Vec::new());
+                    children.push(child);
+                    continue;
+                }
+                Err(reason) => return Err(SplitError::Cannot(reason)),
+            };
             child.cep = Some(cep);
             child.kappa = kappa;
             child.measurements = n;
             child.test = self.test(&child).map_err(SplitError::Measure)?;
             children.push(child);
+        }
+        if children.iter().all(|c| c.borrowed_from.is_some()) && self.opts.unmeasurable.is_none() {
+            return Err(SplitError::Cannot(
+                "neither half holds enough measurable points".into(),
+            ));
         }
         Ok(children)
     }
