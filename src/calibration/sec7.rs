@@ -21,7 +21,9 @@ use super::{
     SessionCalibrated,
 };
 use crate::compensation::{compensate_from, CompensationOptions};
-use crate::devices::{open_rig, OpenedRig, RigDevices, SimClock};
+use crate::devices::{
+    open_rig, Arm, ArmPose, ArmStatus, DeviceError, OpenedRig, RigDevices, SimClock,
+};
 use crate::division::Space;
 use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkOptions, Robot};
 use crate::model::ModelBody;
@@ -39,6 +41,8 @@ use crate::world::Scenario;
 use nalgebra::Vector3;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// The paper's section 7 path (mm, in a frame it does not state).
@@ -165,6 +169,9 @@ pub struct CommandPathRun {
     pub session: SessionReport,
     /// Its rig time as planned.
     pub estimate: RigTimeEstimate,
+    /// Moves of a Cartesian session that went through joint commands, their `MP` solution
+    /// refused at a joint limit.
+    pub mj_moves: usize,
 }
 
 /// What the experiment measured.
@@ -176,6 +183,9 @@ pub struct Sec7Report {
     pub division: SessionCalibrated,
     /// The division session's rig time as planned (its points in the order measured).
     pub division_estimate: RigTimeEstimate,
+    /// Moves of the division session that went through joint commands, their `MP` solution
+    /// refused at a joint limit.
+    pub division_mj_moves: usize,
     /// Leaves without a well-conditioned measurable set of their own: (id, why).
     pub unmeasurable: Vec<(String, String)>,
     /// The registration the path sessions reused.
@@ -218,7 +228,9 @@ pub fn run(
         });
     }
     let path = cartesian_line(&rig, opts.path_mm, opts.path_points)?;
-    let division = divide(&rig, &sc, files, &opts.calibration, progress)?;
+    let fallbacks = Arc::new(AtomicUsize::new(0));
+    let division = divide(&rig, &sc, files, &opts.calibration, &fallbacks, progress)?;
+    let division_mj_moves = fallbacks.swap(0, AtomicOrdering::Relaxed);
     let model_file = files.model_file();
     division
         .calibrated
@@ -241,13 +253,16 @@ pub fn run(
     let mut runs = Vec::new();
     for cp in paths {
         progress(Sec7Stage::Path(cp));
-        runs.push(path_session(&rig, &sc, files, &registration, &commands, cp)?);
+        let mut run = path_session(&rig, &sc, files, &registration, &commands, cp, &fallbacks)?;
+        run.mj_moves = fallbacks.swap(0, AtomicOrdering::Relaxed);
+        runs.push(run);
     }
     Ok(Sec7Report {
         scenario: files.scenario.to_path_buf(),
         unmeasurable: unmeasurable_leaves(&division),
         division,
         division_estimate,
+        division_mj_moves,
         registration,
         path_length_mm: (Vector3::from(opts.path_mm[1]) - Vector3::from(opts.path_mm[0])).norm(),
         path,
@@ -296,14 +311,77 @@ pub fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSp
     })
 }
 
-/// The rig's devices on the emulators of `sc`, every arm move through `MP` when `cartesian`.
-fn emulated_rig(rig: &Rig, sc: &Scenario, cartesian: bool) -> Result<OpenedRig, Sec7Error> {
+/// An arm whose every move goes through the controller's Cartesian command (`MP`), except a
+/// move whose `MP` solution the joint limits refuse before anything is sent (a pose within a
+/// few thousandths of a degree of a limit, rounded out of it): that one goes through the joint
+/// command (`MJ`) to the same joints. The count of such moves is shared with the caller.
+struct CartesianFirst {
+    inner: Box<dyn Arm>,
+    fallbacks: Arc<AtomicUsize>,
+}
+
+impl Arm for CartesianFirst {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.home(timeout)
+    }
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.set_speed(level, timeout)
+    }
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        let done = self.start_move(q, timeout)?;
+        while !self.inner.wait_moved(timeout)? {}
+        Ok(done)
+    }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        match self.inner.start_move_cartesian(q, timeout) {
+            Err(DeviceError::PoseRefused { .. }) => {
+                self.fallbacks.fetch_add(1, AtomicOrdering::Relaxed);
+                self.inner.start_move(q, timeout)
+            }
+            other => other,
+        }
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.inner.wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.start_move(q, timeout)
+    }
+    fn commanded(&self) -> Option<Vec<f64>> {
+        self.inner.commanded()
+    }
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.inner.where_pose(timeout)
+    }
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        self.inner.status(timeout)
+    }
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.reset(timeout)
+    }
+}
+
+/// The rig's devices on the emulators of `sc`, every arm move through `MP` when `cartesian`
+/// ([`CartesianFirst`], counting its joint-command moves in `fallbacks`).
+fn emulated_rig(
+    rig: &Rig,
+    sc: &Scenario,
+    cartesian: bool,
+    fallbacks: &Arc<AtomicUsize>,
+) -> Result<OpenedRig, Sec7Error> {
     let opened = open_rig(rig, Some(sc), SimClock::Virtual)?;
     if !cartesian {
         return Ok(opened);
     }
     let OpenedRig { devices, hook } = opened;
-    let arm = Box::new(crate::devices::safety::CartesianArm::new(devices.arm));
+    let arm = Box::new(CartesianFirst {
+        inner: devices.arm,
+        fallbacks: Arc::clone(fallbacks),
+    });
     Ok(OpenedRig {
         devices: RigDevices { arm, ..devices },
         hook,
@@ -327,11 +405,12 @@ fn divide(
     sc: &Scenario,
     files: Sec7Files<'_>,
     opts: &CalibrationOptions,
+    fallbacks: &Arc<AtomicUsize>,
     progress: &mut dyn FnMut(Sec7Stage),
 ) -> Result<SessionCalibrated, Sec7Error> {
     let dir = files.division_dir();
     let cartesian = super::rig_check::command_path(rig) == CommandPath::Cartesian;
-    let opened = emulated_rig(rig, sc, cartesian)?;
+    let opened = emulated_rig(rig, sc, cartesian, fallbacks)?;
     let mut so = SessionOptions::new(&dir);
     so.seed = opts.seed;
     so.fsync = false;
@@ -485,6 +564,7 @@ fn path_session(
     registration: &RegistrationInfo,
     commands: &MethodCommands,
     cp: CommandPath,
+    fallbacks: &Arc<AtomicUsize>,
 ) -> Result<CommandPathRun, Sec7Error> {
     let dir = files.path_dir(cp);
     std::fs::create_dir_all(&dir).map_err(|source| CalibrationError::Io {
@@ -507,7 +587,7 @@ fn path_session(
     // Measured as read back from the file, as a session on the rig does.
     let plan = read_plan(&plan_file, rig)?;
     let estimate = estimate(rig, &plan, &RigSpeeds::of(rig), &ContactSettings::of(rig));
-    let opened = emulated_rig(rig, sc, cp == CommandPath::Cartesian)?;
+    let opened = emulated_rig(rig, sc, cp == CommandPath::Cartesian, fallbacks)?;
     let mut so = SessionOptions::new(&dir);
     so.seed = sc.seed;
     so.fsync = false;
@@ -546,6 +626,7 @@ fn path_session(
         floors_mm,
         session,
         estimate,
+        mj_moves: 0,
     })
 }
 
