@@ -237,8 +237,7 @@ pub fn run(
         .model
         .save(&model_file)
         .map_err(CalibrationError::from)?;
-    let division_estimate =
-        division_estimate(&rig, &files.division_dir(), opts.calibration.seed)?;
+    let division_estimate = division_estimate(&rig, &files.division_dir(), opts.calibration.seed)?;
     let registration = registration_of(&rig, &files.division_dir())?;
     let models = division
         .calibrated
@@ -435,17 +434,9 @@ fn divide(
 
 /// The rig time the division session's points would take as planned, in the order measured
 /// (registration first).
-fn division_estimate(
-    rig: &Rig,
-    dir: &Path,
-    seed: u64,
-) -> Result<RigTimeEstimate, Sec7Error> {
+fn division_estimate(rig: &Rig, dir: &Path, seed: u64) -> Result<RigTimeEstimate, Sec7Error> {
     let rec = read_recording(rig, dir)?;
-    let registration = registration_points(
-        rig,
-        SessionOptions::new(dir).registration_points,
-        seed,
-    );
+    let registration = registration_points(rig, SessionOptions::new(dir).registration_points, seed);
     let measured: Vec<PlannedPoint> = rec
         .rows
         .iter()
@@ -591,7 +582,7 @@ fn path_session(
     let mut so = SessionOptions::new(&dir);
     so.seed = sc.seed;
     so.fsync = false;
-    so.registration = Some(registration.clone());
+    so.registration = Some(*registration);
     let notes = format!(
         "rigcal section 7: the path, {} passes of {} points through the {cp} command path",
         commands.commands.len(),
@@ -636,7 +627,10 @@ fn mean(v: &[f64]) -> f64 {
 }
 
 fn max(v: &[f64]) -> f64 {
-    v.iter().copied().filter(|x| x.is_finite()).fold(0.0, f64::max)
+    v.iter()
+        .copied()
+        .filter(|x| x.is_finite())
+        .fold(0.0, f64::max)
 }
 
 fn hours(s: f64) -> String {
@@ -685,7 +679,8 @@ impl Sec7Report {
 
     /// Rig time on the dry-run clock, every session (s).
     pub fn rig_time_s(&self) -> f64 {
-        self.division.report.rig_time_s + self.runs.iter().map(|r| r.session.rig_time_s).sum::<f64>()
+        self.division.report.rig_time_s
+            + self.runs.iter().map(|r| r.session.rig_time_s).sum::<f64>()
     }
 
     /// Rig time as planned, every session (s).
@@ -776,5 +771,125 @@ impl CommandPathRun {
             hours(self.estimate.total_s)
         );
         s
+    }
+}
+
+/// The experiment's figures as data (the demo's `summary.json` rig part).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Sec7Summary {
+    /// The scenario.
+    pub scenario: String,
+    /// The path's name.
+    pub path: String,
+    /// Its length (mm).
+    pub path_length_mm: f64,
+    /// Demanded accuracy (mm).
+    pub accuracy_mm: f64,
+    /// Regions of the division (leaves).
+    pub regions: usize,
+    /// The paper's.
+    pub paper_regions: usize,
+    /// Identification measurements of the division.
+    pub measurements: usize,
+    /// Test measurements of the division.
+    pub test_measurements: usize,
+    /// Leaves without a measurable well-conditioned set of their own.
+    pub unmeasurable_regions: Vec<String>,
+    /// Rig hours as planned, every session.
+    pub rig_hours_planned: f64,
+    /// Rig hours on the dry-run clock, every session.
+    pub rig_hours_clock: f64,
+    /// Per command path, each method measured by the rig.
+    pub command_paths: Vec<CommandPathSummary>,
+}
+
+/// One command path's figures.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CommandPathSummary {
+    /// `cartesian` or `joint`.
+    pub command_path: CommandPath,
+    /// `MP` or `MJ`.
+    pub command: String,
+    /// Each method: mean and max of the measured distance to target.
+    pub methods: Vec<super::MethodFigures>,
+    /// Each method's floor (the command path's rounding alone), mean and max (mm).
+    pub floors: Vec<FloorFigures>,
+}
+
+/// A method's floor along the path.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FloorFigures {
+    /// The method.
+    pub method: String,
+    /// Mean (mm).
+    pub mean_mm: f64,
+    /// Max (mm).
+    pub max_mm: f64,
+}
+
+impl Sec7Report {
+    /// The figures as data.
+    pub fn summary(&self) -> Sec7Summary {
+        let (measurements, test_measurements) = self.measurements();
+        Sec7Summary {
+            scenario: self.scenario.display().to_string(),
+            path: self.path.name.clone(),
+            path_length_mm: self.path_length_mm,
+            accuracy_mm: self.division_figures().map_or(0.0, |d| d.accuracy_mm),
+            regions: self.regions(),
+            paper_regions: PAPER_REGIONS,
+            measurements,
+            test_measurements,
+            unmeasurable_regions: self.unmeasurable.iter().map(|(id, _)| id.clone()).collect(),
+            rig_hours_planned: self.planned_s() / 3600.0,
+            rig_hours_clock: self.rig_time_s() / 3600.0,
+            command_paths: self
+                .runs
+                .iter()
+                .map(|r| CommandPathSummary {
+                    command_path: r.command_path,
+                    command: r.command().into(),
+                    methods: r
+                        .results
+                        .iter()
+                        .map(|m| super::MethodFigures::of(m, &[]))
+                        .collect(),
+                    floors: r
+                        .results
+                        .iter()
+                        .zip(&r.floors_mm)
+                        .map(|(m, f)| FloorFigures {
+                            method: m.model.clone(),
+                            mean_mm: mean(f),
+                            max_mm: max(f),
+                        })
+                        .collect(),
+                })
+                .collect(),
+        }
+    }
+
+    /// Plots each command path's measured distances along the path into `dir` (SVG), one file
+    /// per command path: the files written.
+    pub fn plot(&self, dir: &Path) -> Result<Vec<PathBuf>, CalibrationError> {
+        std::fs::create_dir_all(dir).map_err(|source| CalibrationError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        let mut files = Vec::new();
+        for r in &self.runs {
+            let file = dir.join(format!("sec7-path-{}-measured-errors.svg", r.command_path));
+            crate::report::plot_errors(
+                &file,
+                &format!(
+                    "distance to target measured by the rig through {} along {}",
+                    r.command(),
+                    self.path.name
+                ),
+                &r.results,
+            )?;
+            files.push(file);
+        }
+        Ok(files)
     }
 }
