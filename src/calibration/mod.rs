@@ -97,6 +97,11 @@ pub struct CalibrationOptions {
     /// containing the point in the same division made without it.
     #[arg(skip)]
     pub unmeasurable_depth: Option<usize>,
+    /// A half of a split region the rig cannot measure enough of becomes a region without
+    /// measurements of its own instead of stopping the split (seed 000 section 7; see
+    /// [`DivisionOptions::unmeasurable_halves`](crate::division::DivisionOptions)).
+    #[arg(skip)]
+    pub unmeasurable_halves: bool,
 }
 
 /// The paper's design poses for choosing the identifiable basis.
@@ -117,6 +122,7 @@ impl Default for CalibrationOptions {
             seed: 1,
             unmeasurable_at: None,
             unmeasurable_depth: None,
+            unmeasurable_halves: false,
         }
     }
 }

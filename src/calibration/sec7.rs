@@ -74,6 +74,7 @@ impl Default for Sec7Options {
             calibration: CalibrationOptions {
                 space: Space::Cartesian,
                 accuracy_mm: 0.5,
+                unmeasurable_halves: true,
                 ..Default::default()
             },
             path_mm: SEC7_PATH_MM,

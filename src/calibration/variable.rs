@@ -67,6 +67,7 @@ pub(super) fn calibrate(
         per_region: opts.per_region,
         test_points: opts.test_points,
         seed: opts.seed,
+        unmeasurable_halves: opts.unmeasurable_halves,
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();

@@ -264,6 +264,7 @@ fn rig_steps(a: &Args) -> Result<Sec7Report> {
             space: Space::Cartesian,
             accuracy_mm: a.rig_accuracy_mm,
             seed: a.seed,
+            unmeasurable_halves: true,
             ..Default::default()
         },
         path_points: a.path_points,

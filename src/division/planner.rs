@@ -109,6 +109,11 @@ pub struct DivisionOptions {
     /// regions around it split until it is a region of its own, and that region takes the mean
     /// CEPs of its neighbours. Give a region of the division ([`Bounds::region_at`]).
     pub unmeasurable: Option<Bounds>,
+    /// A half of a split region that the rig cannot measure enough of (table travel, the pin
+    /// rule) becomes a region without measurements of its own — its neighbours' mean CEPs,
+    /// the learner generalises there — instead of stopping its parent's split (seed 000
+    /// section 7's rig).
+    pub unmeasurable_halves: bool,
 }
 
 impl Default for DivisionOptions {
@@ -127,6 +132,7 @@ impl Default for DivisionOptions {
             noise_mm: 0.02,
             seed: 1,
             unmeasurable: None,
+            unmeasurable_halves: false,
         }
     }
 }
@@ -705,7 +711,10 @@ impl Ctx<'_, '_> {
                 // The rig cannot measure enough of this half (table travel, the pin rule): it
                 // becomes a region without measurements of its own, as on the paper's rig
                 // (seed 000 section 7): its neighbours' mean CEPs, the learner generalises there.
-                Err(reason) if self.in_box(&bounds).len() < self.min_points() => {
+                Err(reason)
+                    if self.opts.unmeasurable_halves
+                        && self.in_box(&bounds).len() < self.min_points() =>
+                {
                     child.note = Some(format!("unmeasurable: {reason}"));
                     child.borrowed_from = Some(Vec::new());
                     children.push(child);
