@@ -57,7 +57,7 @@ fn summary_figure(summary: &str, path: &str, model: &str) -> (f64, f64) {
 #[test]
 fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
     let dir = tempfile::tempdir().unwrap();
-    let (ok, out, err) = rigcal(&["demo", "--out", s(dir.path()), "--rig-points", "120"]);
+    let (ok, out, err) = rigcal(&["demo", "--out", s(dir.path()), "--path-points", "41"]);
     assert!(ok, "{err}");
     for f in [
         "paper-fig6-model.json",
@@ -65,11 +65,12 @@ fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
         "paper-fig8-model.json",
         "paper-fig6-cmac-model.json",
         "paper-plots/paper-fig6-model/Fig__6_joint_path-errors.svg",
-        "rig/measurements.csv",
-        "rig/plan.dropped.csv",
-        "rig-model.json",
+        "rig/division/measurements.csv",
+        "rig/sec7-model.json",
+        "rig/path-cartesian/measurements.csv",
+        "rig/path-joint/measurements.csv",
+        "rig-plots/sec7-path-cartesian-measured-errors.svg",
         "rig-diagnosis.json",
-        "rig-path-compensated/measurements.csv",
         "summary.txt",
         "summary.json",
     ] {
@@ -84,13 +85,38 @@ fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
         fcmac_max < 0.1 && fcmac_max < conventional_max && conventional_max > 0.1,
         "{summary}"
     );
-    // The rig path: every point measured twice; the resolution floor is reported.
-    assert!(out.contains("0 point(s) not measured"), "{out}");
-    assert!(out.contains("command resolution alone"), "{out}");
-    assert!(
-        out.contains("dropped") && out.contains("pin angle to the panel"),
-        "{out}"
-    );
+    // The section 7 part: the path measured by the rig through MP and MJ, every method, both
+    // floors printed beside the measured errors.
+    assert!(out.contains("floor: the MP rounding alone"), "{out}");
+    assert!(out.contains("floor: the MJ rounding alone"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("summary.json")).unwrap())
+            .unwrap();
+    let rig = &json["rig"];
+    assert!(rig["regions"].as_u64().unwrap() > 1, "{rig}");
+    assert_eq!(rig["paper_regions"], 85);
+    assert!(rig["measurements"].as_u64().unwrap() >= 20 * 2, "{rig}");
+    assert!(rig["rig_hours_clock"].as_f64().unwrap() > 0.0, "{rig}");
+    let paths = rig["command_paths"].as_array().unwrap();
+    assert_eq!(paths.len(), 2, "{rig}");
+    assert_eq!(paths[0]["command"], "MP");
+    assert_eq!(paths[1]["command"], "MJ");
+    for p in paths {
+        let methods: Vec<&str> = p["methods"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|m| m["method"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            methods,
+            ["uncalibrated", "conventional", "regions", "fcmac"]
+        );
+        for m in p["methods"].as_array().unwrap() {
+            assert!(m["max_mm"].as_f64().unwrap() >= m["mean_mm"].as_f64().unwrap());
+        }
+        assert_eq!(p["floors"].as_array().unwrap().len(), 4);
+    }
 }
 
 #[test]

@@ -21,6 +21,7 @@ mod neural;
 pub mod paper_regime;
 pub mod path_figures;
 pub mod rig_check;
+pub mod sec7;
 mod through_session;
 mod variable;
 
@@ -107,6 +108,11 @@ pub struct CalibrationOptions {
     /// containing the point in the same division made without it.
     #[arg(skip)]
     pub unmeasurable_depth: Option<usize>,
+    /// A half of a split region the rig cannot measure enough of becomes a region without
+    /// measurements of its own instead of stopping the split (seed 000 section 7; see
+    /// [`DivisionOptions::unmeasurable_halves`](crate::division::DivisionOptions)).
+    #[arg(skip)]
+    pub unmeasurable_halves: bool,
 }
 
 /// The paper's design poses for choosing the identifiable basis.
@@ -129,6 +135,7 @@ impl Default for CalibrationOptions {
             seed: 1,
             unmeasurable_at: None,
             unmeasurable_depth: None,
+            unmeasurable_halves: false,
         }
     }
 }

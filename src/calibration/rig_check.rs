@@ -141,9 +141,15 @@ pub fn path_plan(rig: &Rig, commands: &[Vec<f64>]) -> Vec<PlannedPoint> {
 /// The measured distance to each target of a path session's recording (mm); NaN where the
 /// point was not measured.
 pub fn measured_errors(rec: &Recording, targets: &[Vector3<f64>]) -> Vec<f64> {
+    measured_errors_in(rec, PATH_REGION, targets)
+}
+
+/// [`measured_errors`] of the points of `region`: a session that runs several passes along
+/// one path, each its own region.
+pub fn measured_errors_in(rec: &Recording, region: &str, targets: &[Vector3<f64>]) -> Vec<f64> {
     rec.rows
         .iter()
-        .filter(|m| m.region.as_deref() == Some(PATH_REGION) && m.status != Status::Via)
+        .filter(|m| m.region.as_deref() == Some(region) && m.status != Status::Via)
         .zip(targets)
         .map(|(m, t)| m.position.map_or(f64::NAN, |p| (p - t).norm()))
         .collect()

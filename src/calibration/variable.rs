@@ -69,6 +69,7 @@ pub(super) fn calibrate(
         selection: opts.selection,
         reuse_parent: opts.reuse_parent,
         seed: opts.seed,
+        unmeasurable_halves: opts.unmeasurable_halves,
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();

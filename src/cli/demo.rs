@@ -8,27 +8,26 @@
 //!    locations), Fig. 8 (Fig. 6 with one region on the path unmeasurable: nothing measured in
 //!    it), and the CEP jumps of regions, FCMAC and CMAC on one division; each figure beside the
 //!    paper's; then Figs. 6 and 7 again at about half the paper's measurements.
-//! 2. A shorter session on the real rig (`rigs/rv-m2.toml`, `sim/rig-realistic.toml`): the table's
-//!    travel and the 15° pin rule at work (points dropped with reasons), registration,
-//!    identification, evaluation along a path inside the measurable workspace (the Fig. 6 path
-//!    cannot be measured there), and a diagnosis of what the geometric model leaves out.
+//! 2. Seed 000 section 7 on the real rig's emulators (`rigs/rv-m2.toml`, `sim/rig-sec7.toml`,
+//!    [`sec7`]): registration, a Cartesian division at 0.5 mm through region sessions (each
+//!    region's 20 κ-selected locations one z-ascending batch), the variable D-H model with and
+//!    without the FCMAC, and a straight Cartesian path of the paper's length measured by the rig
+//!    itself per method through `MP` and, beside it, through `MJ`, with both floors; then a
+//!    diagnosis of what the geometric model leaves out of the division's recording.
 //!
 //! Everything goes to `--out`; `summary.txt` there repeats the closing table and
 //! `summary.json` holds its figures.
 
+use crate::calibration::sec7::{self, Sec7Files, Sec7Options, Sec7Report, Sec7Stage, Sec7Summary};
 use crate::calibration::{
-    self, rig_check, CalibrationOptions, FigureRun, MethodFigures, PaperFigure, PaperRegimeSummary,
-    PathFigures, Source,
+    self, CalibrationOptions, FigureRun, PaperFigure, PaperRegimeSummary, PathFigures, Source,
 };
 use crate::division::{Selection, Space};
-use crate::identification::Level;
 use crate::kinematics::Robot;
 use crate::learners::LearnerKind;
 use crate::model::{ModelBody, ModelFile};
-use crate::recording::{Recording, RegistrationInfo, SessionInfo};
-use crate::report::{mean_max_rows, PathResult, PathSpec};
+use crate::report::{mean_max_rows, PathSpec};
 use crate::rig::Rig;
-use crate::session::{read_plan, write_plan, SessionOptions};
 use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
@@ -37,7 +36,7 @@ use std::path::{Path, PathBuf};
 const PAPER_RIG: &str = "rigs/rv-m2-ideal.toml";
 const PAPER_SCENARIO: &str = "sim/paper-fig6.toml";
 const REAL_RIG: &str = "rigs/rv-m2.toml";
-const REAL_SCENARIO: &str = "sim/rig-realistic.toml";
+const REAL_SCENARIO: &str = "sim/rig-sec7.toml";
 /// The point of Fig. 8's unmeasurable region: on the Fig. 6 path, half way along.
 const FIG8_POINT: [f64; 3] = [92.0, 75.0, -22.0];
 
@@ -48,9 +47,12 @@ pub struct Args {
     /// there are replaced on a new run).
     #[arg(long, default_value = "out/demo")]
     out: PathBuf,
-    /// Points of the session on the real rig's constraints.
-    #[arg(long, default_value_t = 300)]
-    rig_points: usize,
+    /// Accuracy the section 7 division demands on the real rig (mm; the paper's 0.5).
+    #[arg(long, default_value_t = 0.5)]
+    rig_accuracy_mm: f64,
+    /// Points of the section 7 path, measured once per method and command path.
+    #[arg(long, default_value_t = 101)]
+    path_points: usize,
     /// Accuracy the variable D-H model must reach in every region (mm; the paper's 0.1).
     #[arg(long, default_value_t = 0.1)]
     accuracy_mm: f64,
@@ -66,14 +68,7 @@ struct DemoSummary {
     seed: u64,
     wall_s: f64,
     paper: PaperRegimeSummary,
-    rig: RigSummary,
-}
-
-/// The rig part of `summary.json`: the path measured by the rig itself.
-#[derive(Debug, Serialize)]
-struct RigSummary {
-    path: String,
-    methods: Vec<MethodFigures>,
+    rig: Sec7Summary,
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -82,9 +77,8 @@ pub fn run(a: Args) -> Result<()> {
             bail!("{f} not found: run `rigcal demo` from the repository's top directory (it reads rigs/ and sim/)");
         }
     }
-    anyhow::ensure!(a.rig_points >= 60, "--rig-points must be at least 60");
+    anyhow::ensure!(a.path_points >= 2, "--path-points must be at least 2");
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    clear_session_dir(&a.out.join("rig"))?;
     let started = std::time::Instant::now();
     let paper = paper_steps(&a)?;
     let rig = rig_steps(&a)?;
@@ -94,9 +88,8 @@ pub fn run(a: Args) -> Result<()> {
         a.seed,
         paper.text()
     );
-    summary.push_str("real rig: distance to target measured by the rig itself, mean / max in mm\n");
-    summary.push_str(&mean_max_rows(&rig.0, &rig.1));
-    summary.push_str(&format!("files in {}: paper-fig6-model.json, paper-fig7-model.json, paper-fig8-model.json, paper-fig6-cmac-model.json, paper-fig6-d-optimal-10-model.json and paper-fig7-d-optimal-9-model.json (half the measurements), paper-plots/ (SVG, CSV), rig/, rig-path-nominal/, rig-path-compensated/ (session recordings, plans, journals), rig-path-nominal.csv and rig-path-compensated.csv (the path as planned: joint commands and table targets), rig-model.json, rig-diagnosis.json, rig-plots/ (SVG), summary.txt, summary.json\n", a.out.display()));
+    summary.push_str(&rig_summary_text(&rig));
+    summary.push_str(&format!("files in {}: paper-fig6-model.json, paper-fig7-model.json, paper-fig8-model.json, paper-fig6-cmac-model.json, paper-fig6-d-optimal-10-model.json and paper-fig7-d-optimal-9-model.json (half the measurements), paper-plots/ (SVG, CSV), rig/ (section 7: division/, path-cartesian/, path-joint/ session recordings, plans and journals; sec7-model.json), rig-plots/ (SVG), rig-diagnosis.json, summary.txt, summary.json\n", a.out.display()));
     heading("Summary");
     print!("{summary}");
     let file = a.out.join("summary.txt");
@@ -106,14 +99,31 @@ pub fn run(a: Args) -> Result<()> {
         seed: a.seed,
         wall_s,
         paper,
-        rig: RigSummary {
-            path: rig.0,
-            methods: rig.1.iter().map(|r| MethodFigures::of(r, &[])).collect(),
-        },
+        rig: rig.summary(),
     };
     let file = a.out.join("summary.json");
     std::fs::write(&file, serde_json::to_string_pretty(&json)? + "\n")
         .with_context(|| format!("writing {}", file.display()))
+}
+
+/// The rig part of `summary.txt`: per command path, each method as the rig measured it.
+fn rig_summary_text(rig: &Sec7Report) -> String {
+    let (ident, tests) = rig.measurements();
+    let mut s = format!(
+        "real rig, seed 000 section 7 ({REAL_SCENARIO}): {} regions (paper {}), {ident} identification and {tests} test measurements, {} unmeasurable; rig time {:.2} h on the dry-run clock ({:.2} h planned); distance to target measured by the rig itself, mean / max in mm (paper: uncalibrated 0.3–2.5, conventional below 1.2, variable below 0.5)\n",
+        rig.regions(),
+        sec7::PAPER_REGIONS,
+        rig.unmeasurable.len(),
+        rig.rig_time_s() / 3600.0,
+        rig.planned_s() / 3600.0,
+    );
+    for run in &rig.runs {
+        s.push_str(&mean_max_rows(
+            &format!("{} through {}", rig.path.name, run.command()),
+            &run.results,
+        ));
+    }
+    s
 }
 
 /// Step 1: Figs. 6, 7 and 8 and the CEP jumps in the paper's regime.
@@ -297,196 +307,53 @@ fn leaf_depth_at(model: &ModelFile, rig: &Rig, at: [f64; 3]) -> Result<usize> {
     Ok(leaf.id.len() - 1)
 }
 
-/// Steps 2–5 on the real rig's constraints; the measured path's name and results.
-fn rig_steps(a: &Args) -> Result<(String, Vec<PathResult>)> {
-    let out = |name: &str| a.out.join(name);
-    let rig = Rig::load(Path::new(REAL_RIG))?;
-    heading("2. Dry-run session on the real rig's constraints (table travel, 15° pin rule, panel)");
-    dry_session(
-        REAL_RIG,
-        REAL_SCENARIO,
-        Plan::Points(a.rig_points, a.seed),
-        &out("rig"),
-    )?;
-    heading("3. Conventional identification from the rig recording");
-    identify(&rig, &out("rig"), &out("rig-model.json"))?;
-    let planned = read_plan(&out("rig").join("plan.csv"), &rig)?;
-    let path = rig_check::measurable_path(&rig, &planned, 101).context(
-        "no two planned points of the rig session are joined by a measurable straight joint path",
-    )?;
-    heading(&format!(
-        "4. Measured by the rig along {} (the Fig. 6 path lies outside the table's reach)",
-        path.name
-    ));
-    let results = rig_path_check(&rig, &out("rig-model.json"), &path, &a.out)?;
-    heading("5. Diagnosis: what the geometric model leaves out of the rig recording");
-    diagnose(
-        &rig,
-        &out("rig"),
-        &out("rig-plots"),
-        &out("rig-diagnosis.json"),
-    )?;
-    Ok((path.name, results))
-}
-
-/// Runs the path twice on the rig — at the nominal commands and at the commands the identified
-/// model compensates — each as a session reusing the rig session's registration (one frame).
-/// On the real rig this is how a model is checked: the truth is what the instrument measures.
-fn rig_path_check(
-    rig: &Rig,
-    model_path: &Path,
-    path: &PathSpec,
-    out: &Path,
-) -> Result<Vec<PathResult>> {
-    let models = ModelFile::load(model_path)?
-        .file
-        .error_models(rig, model_path)?;
-    let (name, model) = models.first().context("the model file holds no model")?;
-    let commands = rig_check::path_commands(rig, model.as_ref(), path)?;
-    let registration = rig_check::registration_of(rig, &out.join("rig"))?;
-    let mut recordings = Vec::new();
-    for (tag, points) in [
-        ("nominal", &commands.nominal),
-        ("compensated", &commands.compensated),
-    ] {
-        let plan = out.join(format!("rig-path-{tag}.csv"));
-        write_plan(&plan, rig, &rig_check::path_plan(rig, points))?;
-        let dir = out.join(format!("rig-path-{tag}"));
-        clear_session_dir(&dir)?;
-        dry_session(
-            REAL_RIG,
-            REAL_SCENARIO,
-            Plan::File(
-                &plan,
-                registration,
-                tag == "compensated"
-                    && rig_check::command_path(rig)
-                        == crate::rig::controller::CommandPath::Cartesian,
-            ),
-            &dir,
-        )?;
-        recordings.push(Recording::read(&dir, rig.chain.joints())?);
-    }
-    let check =
-        rig_check::RigPathCheck::new(rig, path, &commands, name, &recordings[0], &recordings[1]);
-    std::fs::create_dir_all(out.join("rig-plots"))?;
-    let plot = out.join("rig-plots").join("rig-path-measured-errors.svg");
-    check.plot(&plot)?;
-    print!("{}", check.text(&plot));
-    Ok(check.results)
-}
-
-/// What a dry-run session measures.
-enum Plan<'a> {
-    /// This many points planned here from a seed, the dropped candidates reported; then a
-    /// registration.
-    Points(usize, u64),
-    /// The points of a plan file, in the frame of this registration; through the arm's
-    /// Cartesian command (`MP`) if the flag is set.
-    File(&'a Path, RegistrationInfo, bool),
-}
-
-/// Runs a dry-run session into `dir` as `rigcal session --sim` does: emulators on the virtual
-/// clock. The demo's only calls into the session API.
-fn dry_session(rig_file: &str, scenario: &str, plan: Plan<'_>, dir: &Path) -> Result<()> {
-    use crate::session::{
-        estimate, registration_points, run_session, ContactSettings, Progress, RigSpeeds,
-    };
-    let rig = Rig::load(Path::new(rig_file))?;
-    let sc =
-        super::session::load_scenario(&rig, Path::new(rig_file), Some(Path::new(scenario)), None)?
-            .context("a dry run needs its scenario")?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let plan_path = dir.join("plan.csv");
-    let mut opts = SessionOptions::new(dir);
-    let (points, registration) = match plan {
-        Plan::Points(n, seed) => {
-            let p = crate::session::plan(&rig, &super::plan::options(n, 8, 50, seed))?;
-            super::plan::report_dropped(&rig, &p, &plan_path)?;
-            opts.seed = seed;
-            (
-                p.points,
-                registration_points(&rig, opts.registration_points, seed),
-            )
-        }
-        Plan::File(file, registration, _) => {
-            opts.seed = sc.seed;
-            opts.registration = Some(registration);
-            (read_plan(file, &rig)?, Vec::new())
-        }
-    };
-    write_plan(&plan_path, &rig, &points)?;
-    // Measured as read back from the file, as a session does.
-    let points = read_plan(&plan_path, &rig)?;
-    let all = [registration, points.clone()].concat();
-    println!(
-        "{}",
-        super::plan::describe(&estimate(
-            &rig,
-            &all,
-            &RigSpeeds::of(&rig),
-            &ContactSettings::of(&rig)
-        ))
-    );
-    let cartesian = matches!(plan, Plan::File(_, _, true));
-    let mut opened = crate::devices::open_rig(&rig, Some(&sc), crate::devices::SimClock::Virtual)?;
-    if cartesian {
-        let crate::devices::OpenedRig { devices, hook } = opened;
-        let arm = Box::new(crate::devices::safety::CartesianArm::new(devices.arm));
-        opened = crate::devices::OpenedRig {
-            devices: crate::devices::RigDevices { arm, ..devices },
-            hook,
-        };
-    }
-    opts.fsync = !opened.devices.clock.is_virtual();
-    let notes = format!(
-        "rigcal session: {} points, dry run on the virtual clock",
-        points.len()
-    );
-    opts.info = SessionInfo {
-        rig: Some(rig_file.into()),
-        scenario: Some(scenario.into()),
-        seed: Some(sc.seed),
-        notes: Some(notes),
+/// Step 2: seed 000 section 7 on the rig's emulators ([`sec7`]), then a diagnosis of what the
+/// geometric model leaves out of the division session's recording.
+fn rig_steps(a: &Args) -> Result<Sec7Report> {
+    let out = a.out.join("rig");
+    clear_sec7_dir(&out)?;
+    heading("2. Seed 000 section 7 on the real rig's emulators (sim/rig-sec7.toml): registration, region sessions, the path measured by the rig");
+    let opts = Sec7Options {
+        calibration: CalibrationOptions {
+            space: Space::Cartesian,
+            accuracy_mm: a.rig_accuracy_mm,
+            seed: a.seed,
+            unmeasurable_halves: true,
+            ..Default::default()
+        },
+        path_points: a.path_points,
         ..Default::default()
     };
-    let r = run_session(&rig, opened, &points, opts, &Progress::auto(points.len()))?;
-    print_session(dir, &r);
-    Ok(())
-}
-
-/// What `rigcal session` prints after a fresh dry run.
-fn print_session(dir: &Path, r: &crate::session::SessionReport) {
-    println!("session {}: {} points, {} measured, {} skipped, {} via rows, {} retries, {} faults cleared", dir.display(), r.points, r.ok, r.skipped.len(), r.via, r.retries, r.faults_cleared.len());
-    for (p, why) in &r.skipped {
-        println!("  point {p} skipped: {why}");
+    let files = Sec7Files {
+        rig: Path::new(REAL_RIG),
+        scenario: Path::new(REAL_SCENARIO),
+        out: &out,
+    };
+    let report = sec7::run(files, &opts, &mut |stage| match stage {
+        Sec7Stage::Division(n, cap) if n % 10 == 0 => {
+            eprintln!("dividing: {n} regions (cap {cap})")
+        }
+        Sec7Stage::Division(..) => {}
+        Sec7Stage::Path(cp) => eprintln!("measuring the path through the {cp} command path"),
+    })?;
+    print!("{}", report.text());
+    for plot in report.plot(&a.out.join("rig-plots"))? {
+        println!("plot: {}", plot.display());
     }
-    for f in &r.faults_cleared {
-        println!("  cleared: {f}");
-    }
-    if let Some(rms) = r.registration_rms_mm {
-        println!("registration RMS {rms:.3} mm (written to session.toml)");
-    }
-    println!("rig time {:.0} s ({:.2} h) on the virtual clock: what the rig would have taken; wall time {:.2} s", r.rig_time_s, r.rig_time_s / 3600.0, r.wall.as_secs_f64());
-}
-
-/// Step 3: conventional identification as `rigcal identify` prints it (the demo's one call into
-/// the identification pipeline).
-fn identify(rig: &Rig, recording: &Path, out: &Path) -> Result<()> {
-    use super::identify::{print_identification, write_model};
-    let rec = super::read_recording(rig, recording)?;
-    let id = crate::identification::identify(rig, &rec, Level::Full, &Default::default())?;
-    println!(
-        "recording {}: {} rows, {} measurements used",
-        recording.display(),
-        rec.rows.len(),
-        id.fit.after.n
+    heading(
+        "3. Diagnosis: what the geometric model leaves out of the division session's recording",
     );
-    print_identification(&id);
-    write_model(rig, &id, recording, out)
+    let rig = Rig::load(Path::new(REAL_RIG))?;
+    diagnose(
+        &rig,
+        &files.division_dir(),
+        &a.out.join("rig-plots"),
+        &a.out.join("rig-diagnosis.json"),
+    )?;
+    Ok(report)
 }
 
-/// Step 5: the diagnosis as `rigcal diagnose` prints it, its report and plots written.
+/// The diagnosis as `rigcal diagnose` prints it, its report and plots written.
 fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
     let rec = super::read_recording(rig, recording)?;
     let report = crate::diagnosis::diagnose(rig, &rec, &Default::default())
@@ -511,15 +378,16 @@ fn heading(text: &str) {
     println!("\n== {text}");
 }
 
-/// Removes a session directory an earlier demo wrote (it holds a journal); refuses anything else.
-fn clear_session_dir(dir: &Path) -> Result<()> {
+/// Removes the section 7 directory an earlier demo wrote (its division session holds a
+/// journal); refuses anything else.
+fn clear_sec7_dir(dir: &Path) -> Result<()> {
     if !dir.exists() {
         return Ok(());
     }
-    if !dir.join(crate::session::journal::JOURNAL_FILE).exists() && dir.read_dir()?.next().is_some()
-    {
+    let journal = |d: &Path| d.join(crate::session::journal::JOURNAL_FILE).exists();
+    if !journal(dir) && !journal(&dir.join("division")) && dir.read_dir()?.next().is_some() {
         bail!(
-            "{} exists and is not a session directory of an earlier demo; choose another --out",
+            "{} exists and is not a directory of an earlier demo; choose another --out",
             dir.display()
         );
     }

@@ -116,6 +116,11 @@ pub struct DivisionOptions {
     /// regions around it split until it is a region of its own, and that region takes the mean
     /// CEPs of its neighbours. Give a region of the division ([`Bounds::region_at`]).
     pub unmeasurable: Option<Bounds>,
+    /// A half of a split region that the rig cannot measure enough of (table travel, the pin
+    /// rule) becomes a region without measurements of its own — its neighbours' mean CEPs,
+    /// the learner generalises there — instead of stopping its parent's split (seed 000
+    /// section 7's rig).
+    pub unmeasurable_halves: bool,
 }
 
 impl Default for DivisionOptions {
@@ -136,6 +141,7 @@ impl Default for DivisionOptions {
             noise_mm: 0.02,
             seed: 1,
             unmeasurable: None,
+            unmeasurable_halves: false,
         }
     }
 }
@@ -565,7 +571,7 @@ impl Ctx<'_, '_> {
             .filter(|(k, _)| !(hold_out && k % 5 == 4))
             .map(|(_, o)| o.clone())
             .collect();
-        let min_points = (self.basis.len() / 3 + 1).max(self.opts.per_region / 2);
+        let min_points = self.min_points();
         if obs.len() < min_points {
             return Err(format!(
                 "only {} measurable points in the region ({} needed)",
@@ -590,6 +596,11 @@ impl Ctx<'_, '_> {
         }
         let cep = self.basis.iter().map(|&i| r.params.get(i)).collect();
         Ok((cep, r.kappa, obs.len()))
+    }
+
+    /// Measurements a region needs for its fit.
+    fn min_points(&self) -> usize {
+        (self.basis.len() / 3 + 1).max(self.opts.per_region / 2)
     }
 
     fn identify(
@@ -718,14 +729,32 @@ impl Ctx<'_, '_> {
             }
             self.populate(&child.id, &bounds, self.opts.per_region)
                 .map_err(SplitError::Measure)?;
-            let (cep, kappa, n) = self
-                .identify(&child.id, &bounds, parent.as_deref())
-                .map_err(SplitError::Cannot)?;
+            let (cep, kappa, n) = match self.identify(&child.id, &bounds, parent.as_deref()) {
+                Ok(fit) => fit,
+                // The rig cannot measure enough of this half (table travel, the pin rule): it
+                // becomes a region without measurements of its own, as on the paper's rig
+                // (seed 000 section 7): its neighbours' mean CEPs, the learner generalises there.
+                Err(reason)
+                    if self.opts.unmeasurable_halves
+                        && self.in_box(&child.id, &bounds).len() < self.min_points() =>
+                {
+                    child.note = Some(format!("unmeasurable: {reason}"));
+                    child.borrowed_from = Some(Vec::new());
+                    children.push(child);
+                    continue;
+                }
+                Err(reason) => return Err(SplitError::Cannot(reason)),
+            };
             child.cep = Some(cep);
             child.kappa = kappa;
             child.measurements = n;
             child.test = self.test(&child).map_err(SplitError::Measure)?;
             children.push(child);
+        }
+        if children.iter().all(|c| c.borrowed_from.is_some()) && self.opts.unmeasurable.is_none() {
+            return Err(SplitError::Cannot(
+                "neither half holds enough measurable points".into(),
+            ));
         }
         Ok(children)
     }
