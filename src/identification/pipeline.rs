@@ -158,7 +158,11 @@ fn identify_robust(
     // again against the recording's structure ([`judge_against_structure`]).
     let judged = geometric_judgement(rig, rec, level, settings)?;
     let decided = judged.decided_without_structure();
-    let GeometricJudgement { search, first, last } = judged;
+    let GeometricJudgement {
+        search,
+        first,
+        last,
+    } = judged;
     match search {
         Ok((outliers, _)) if decided => {
             tracing::debug!(
@@ -318,8 +322,11 @@ fn geometric_only(
     settings: &OutlierSettings,
 ) -> Result<Robust, IdentifyError> {
     let obs = rec.observations();
-    let GeometricJudgement { search, first, last } =
-        geometric_judgement(rig, rec, level, settings)?;
+    let GeometricJudgement {
+        search,
+        first,
+        last,
+    } = geometric_judgement(rig, rec, level, settings)?;
     match search {
         Ok((outliers, _)) => {
             let (chain, result) = last_or_all_rows(last, first, rig, &obs, level)?;
