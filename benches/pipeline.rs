@@ -1,8 +1,10 @@
 //! Benchmarks of the calibration pipeline: identification from 2200 measurements (the paper's
-//! data set size) — the fit alone and `identify` end to end (analysis, fit, outlier search) —
+//! data set size) — the fit alone, `identify` in memory, and `identify` end to end as the
+//! command runs it (CSV read, analysis, fit, outlier search with two bad rows, model file) —
 //! `diagnose` on 600 rows, compensation throughput (one target at a time as before, and the
-//! [`Compensator`] cold and warm along a path) and the variable D-H pipeline as a library call.
-//! Run with `cargo bench --bench pipeline`.
+//! [`Compensator`] cold and warm along a path) and `calibrate` (division, region fits, FCMAC) at
+//! 0.1 mm on `sim/paper-fig6.toml` and 0.02 mm on `sim/paper-sim.toml`, as `rigcal calibrate`
+//! runs them. Run with `cargo bench --bench pipeline` (a few minutes on 2 cores).
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::rngs::ChaCha8Rng;
@@ -13,6 +15,7 @@ use rigcal::identification::{
     Observation,
 };
 use rigcal::kinematics::{ErrorParams, Robot};
+use rigcal::recording::Recording;
 use rigcal::rig::Rig;
 use rigcal::world::{paper_geometric_errors, World};
 use std::path::Path;
@@ -50,7 +53,7 @@ fn identification(c: &mut Criterion) {
     g.bench_function("15 parameters from 2200 measurements", |b| {
         b.iter(|| fit(&rig.chain, &obs, &zero, &basis, &FitOptions::default()).expect("fit"))
     });
-    let rec = world.record(&poses, 1);
+    let mut rec = world.record(&poses, 1);
     g.bench_function(
         "identify at level full from a 2200-row recording (outlier search included)",
         |b| {
@@ -59,7 +62,42 @@ fn identification(c: &mut Criterion) {
             })
         },
     );
+    // Two gross rows (a reflection, a touch on dirt): the outlier search removes them.
+    for (k, d) in [(700usize, [3.0, 0.0, -1.5]), (1500, [0.0, -2.0, 2.0])] {
+        if let Some(p) = rec.rows[k].position.as_mut() {
+            *p += nalgebra::Vector3::from(d);
+        }
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let rec_dir = dir.path().join("rec");
+    rec.write_dir(&rec_dir).expect("write the recording");
+    let out = dir.path().join("model.json");
+    g.bench_function(
+        "identify end to end: 2200-row CSV with 2 bad rows to model file (as rigcal identify)",
+        |b| b.iter(|| identify_to_model_file(&rig, &rec_dir, &out)),
+    );
     g.finish();
+}
+
+/// What `rigcal identify` does between reading the rig and printing: the recording read from
+/// its CSV, identified with the outlier search, the model file written. Returns the outliers.
+fn identify_to_model_file(rig: &Rig, rec_dir: &Path, out: &Path) -> usize {
+    use rigcal::model::{ModelFile, Provenance};
+    let rec = Recording::read(rec_dir, rig.chain.joints()).expect("read the recording");
+    let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let mut file = ModelFile::constant(
+        rig,
+        &id.fit,
+        Provenance {
+            recording: Some(rec_dir.display().to_string()),
+            measurements: id.fit.after.n,
+            notes: id.outlier_warning.clone(),
+        },
+    );
+    file.outliers = id.outliers.clone();
+    file.save(out).expect("write the model");
+    assert_eq!(id.outliers.len(), 2, "the two bad rows are found");
+    id.outliers.len()
 }
 
 fn compensation(c: &mut Criterion) {
@@ -164,34 +202,30 @@ fn variable_model(c: &mut Criterion) {
     use rigcal::calibration::{calibrate, CalibrationOptions, Source};
     use rigcal::learners::Learner;
     use rigcal::model::ModelBody;
-    let scenario =
-        rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).expect("scenario");
-    let rig = scenario.rig.clone();
-    let mut g = c.benchmark_group("variable model (paper-sim, joint space)");
+    let mut g = c.benchmark_group("calibrate (division + region fits + FCMAC)");
     g.sample_size(10);
     let mut fcmac = None;
-    for accuracy in [0.1, 0.02] {
-        g.bench_function(
-            format!("divide + identify + train FCMAC, demanded {accuracy} mm"),
-            |b| {
-                b.iter(|| {
-                    // Test points as the division's defaults (10), the paper's pipeline otherwise.
-                    let opts = CalibrationOptions {
-                        accuracy_mm: accuracy,
-                        test_points: 10,
-                        ..CalibrationOptions::default()
-                    };
-                    let cal =
-                        calibrate(&rig, Source::Scenario(&scenario), &opts).expect("calibrate");
-                    if let ModelBody::Variable { learner, .. } = cal.model.model {
-                        fcmac = learner;
-                    }
-                })
-            },
-        );
+    let mut rig = None;
+    for (file, accuracy) in [("sim/paper-fig6.toml", 0.1), ("sim/paper-sim.toml", 0.02)] {
+        let scenario = rigcal::world::Scenario::load(Path::new(file), None).expect("scenario");
+        // The options `rigcal calibrate --scenario FILE --accuracy A` runs with.
+        let opts = CalibrationOptions {
+            accuracy_mm: accuracy,
+            ..CalibrationOptions::default()
+        };
+        g.bench_function(format!("{file}, demanded {accuracy} mm"), |b| {
+            b.iter(|| {
+                let cal = calibrate(&scenario.rig, Source::Scenario(&scenario), &opts)
+                    .expect("calibrate");
+                if let ModelBody::Variable { learner, .. } = cal.model.model {
+                    fcmac = learner;
+                }
+            })
+        });
+        rig = Some(scenario.rig.clone());
     }
     g.finish();
-    let Some(Learner::Fcmac(f)) = fcmac else {
+    let (Some(Learner::Fcmac(f)), Some(rig)) = (fcmac, rig) else {
         return;
     };
     let mut rng = ChaCha8Rng::seed_from_u64(1);

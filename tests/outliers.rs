@@ -385,3 +385,53 @@ fn planted_rows_are_found_in_a_structured_recording() {
         }
     }
 }
+
+#[test]
+fn gross_rows_in_a_structured_recording_are_the_rows_the_structure_judgement_finds() {
+    // The paper's recording: geometry, eq. (6) joint errors (9 % of the error) and 0.016 mm
+    // noise, so the geometric residual is structured. Rows 40 and 200 moved by 3 and 2 mm are
+    // far beyond every other row: the geometric judgement removes them alone (no diagnosis),
+    // and they are the rows the diagnosis's structure judgement finds, with the same sizes.
+    use rigcal::identification::outliers::OutlierSettings;
+    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-sim-noise.toml"), None)
+        .expect("scenario");
+    let rig = &sc.rig;
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let poses = random_poses(rig.chain.joints(), rig.held(), 300, &mut rng);
+    let mut rec = sc.world().record(&poses, 1);
+    for (k, d) in [
+        (40usize, Vector3::new(3.0, 0.0, 0.0)),
+        (200, Vector3::new(0.0, 1.2, -1.6)),
+    ] {
+        if let Some(p) = rec.rows[k].position.as_mut() {
+            *p += d;
+        }
+    }
+    let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let mut fast: Vec<(u64, f64)> = id.outliers.iter().map(|o| (o.seq, o.size_mm)).collect();
+    fast.sort_by_key(|f| f.0);
+    assert_eq!(fast.iter().map(|f| f.0).collect::<Vec<_>>(), vec![41, 201]);
+    assert_eq!(id.fit.after.n, 298);
+    let mut judged: Vec<(u64, f64)> = rigcal::diagnosis::outliers::outliers_against_structure(
+        rig,
+        &rec,
+        &OutlierSettings::default(),
+    )
+    .expect("the diagnosis models the recording")
+    .expect("two rows are not too many")
+    .iter()
+    .map(|o| (o.seq, o.size_mm))
+    .collect();
+    judged.sort_by_key(|f| f.0);
+    assert_eq!(
+        judged.iter().map(|f| f.0).collect::<Vec<_>>(),
+        vec![41, 201],
+        "{judged:?}"
+    );
+    for ((_, a), (_, b)) in fast.iter().zip(&judged) {
+        assert!((a - b).abs() < 0.05, "{a} vs {b} mm");
+    }
+    for ((_, size), want) in fast.iter().zip([3.0, 2.0]) {
+        assert!((size - want).abs() < 0.1, "{size} vs {want}");
+    }
+}

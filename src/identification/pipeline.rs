@@ -4,9 +4,12 @@
 //! fitted model's error on held-out recordings.
 //!
 //! Outliers are judged against the structure of the recording, not only against the geometry:
-//! when the geometric judgement flags rows, they are judged again against the model the
-//! diagnosis finds (geometry, named effects, discrepancy term), and only rows that fail there are
-//! removed. A clean recording with structured residuals keeps every row.
+//! when the geometric judgement flags rows that are not gross beyond any structure (each more
+//! than [`GROSS_FACTOR`] times the largest residual of the rows kept), they are judged again
+//! against the model the diagnosis finds (geometry, named effects, discrepancy term), and only
+//! rows that fail there are removed. A clean recording with structured residuals keeps every
+//! row; a reflection or a touch on dirt, far beyond every other row, is removed without the
+//! diagnosis's cost (seconds on thousands of rows, against milliseconds).
 //!
 //! The parameters returned are absolute (free frames included), for the rig's own chain, so a
 //! model file written from them stands alone.
@@ -18,6 +21,7 @@ use super::{errors, FitError, FitResult, ResidualStats};
 use crate::kinematics::{Robot, SerialChain, TransformId};
 use crate::recording::{Observation, Recording};
 use crate::rig::Rig;
+use nalgebra::Vector3;
 
 /// A recording to check the fitted model on, with the name reports give it.
 #[derive(Debug, Clone)]
@@ -140,7 +144,7 @@ fn identify_robust(
     rec: &Recording,
     level: Level,
     settings: &OutlierSettings,
-) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
+) -> Result<Robust, IdentifyError> {
     let obs = rec.observations();
     // The cheap refusals first, so they are not reported as failures of the outlier search.
     if obs.is_empty() {
@@ -149,73 +153,132 @@ fn identify_robust(
     if level.candidates(rig).is_empty() {
         return Err(IdentifyError::NothingToFit { level });
     }
-    // The geometric judgement only decides whether any row looks off; the rows are then judged
-    // against the recording's structure ([`judge_against_structure`]), so it stops at the first.
-    match geometric_search(rig, rec, level, settings, true) {
-        Ok(Searched::Clean(fitted)) => {
-            let (chain, result) = *fitted;
-            Ok((chain, result, Vec::new(), None))
+    // The geometric judgement decides alone when no row fails, or when every row that fails is
+    // gross beyond any structure ([`GROSS_FACTOR`]); otherwise the rows are judged
+    // again against the recording's structure ([`judge_against_structure`]).
+    let judged = geometric_judgement(rig, rec, level, settings)?;
+    let decided = judged.decided_without_structure();
+    let GeometricJudgement {
+        search,
+        first,
+        last,
+    } = judged;
+    match search {
+        Ok((outliers, _)) if decided => {
+            tracing::debug!(
+                outliers = outliers.len(),
+                "outliers decided by the geometric judgement"
+            );
+            let (chain, result) = last_or_all_rows(last, first, rig, &obs, level)?;
+            Ok((chain, result, outliers, None))
         }
-        Ok(Searched::Flagged) => judge_against_structure(rig, rec, level, settings),
-        Err(e) => Err(e),
+        Ok(_) | Err(OutlierError::TooMany { .. }) => {
+            judge_against_structure(rig, rec, level, settings)
+        }
+        Err(OutlierError::Fit(e)) => Err(e),
     }
 }
 
-/// What the geometric outlier search found.
-enum Searched {
-    /// No row fails: the fit on every row.
-    Clean(Box<(SerialChain, FitResult)>),
-    /// Some row fails (or too many do).
-    Flagged,
+/// The outcome of the robust fit: (chain, fit, outliers removed, warning when too many failed).
+type Robust = (SerialChain, FitResult, Vec<Outlier>, Option<String>);
+
+/// A row the geometric judgement removes is decided without the recording's structure when it
+/// is off by more than this many times the largest residual of every row kept. Structure the
+/// diagnosis models is shared by neighbouring poses (a library effect, a spline, a radial
+/// function that must lower the leave-one-out error): it cannot put one row several times
+/// beyond every other row of the recording, while a marker seen through a reflection can.
+/// Rows that fail by less — the largest rows of a structured residual look like that — are
+/// judged against the structure.
+pub const GROSS_FACTOR: f64 = 3.0;
+
+/// The outlier search against the geometric fit at a level, each removal refitting from the
+/// last fit without the row ([`GeometricRefits`]).
+struct GeometricJudgement {
+    /// The search's outcome: the rows removed and the rows kept, or why it stopped.
+    search: Result<(Vec<Outlier>, Vec<usize>), OutlierError<IdentifyError>>,
+    /// The fit on every row (the search's first).
+    first: Option<(SerialChain, FitResult)>,
+    /// The search's last fit and every row's residual against it.
+    last: Option<(SerialChain, FitResult, Vec<Vector3<f64>>)>,
 }
 
-/// Stops the geometric search at its first outlier.
-#[derive(Debug, thiserror::Error)]
-enum Probe {
-    #[error(transparent)]
-    Fit(IdentifyError),
-    #[error("a row failed the geometric judgement")]
-    Flagged,
+impl GeometricJudgement {
+    /// True when the search ended and no row failed, or every removed row is off by more than
+    /// [`GROSS_FACTOR`] times the largest residual of the rows kept, against the last fit (the
+    /// removed rows predicted by it).
+    fn decided_without_structure(&self) -> bool {
+        let (Ok((outliers, kept)), Some((_, _, residuals))) = (&self.search, &self.last) else {
+            return matches!(&self.search, Ok((outliers, _)) if outliers.is_empty());
+        };
+        let largest_kept = kept
+            .iter()
+            .map(|&i| residuals[i].norm())
+            .fold(0.0, f64::max);
+        outliers
+            .iter()
+            .all(|o| o.size_mm > GROSS_FACTOR * largest_kept)
+    }
+}
+
+/// The last fit (on the rows kept), or the fit on every row when the search fitted none.
+fn last_or_all_rows(
+    last: Option<(SerialChain, FitResult, Vec<Vector3<f64>>)>,
+    first: Option<(SerialChain, FitResult)>,
+    rig: &Rig,
+    obs: &[Observation],
+    level: Level,
+) -> Result<(SerialChain, FitResult), IdentifyError> {
+    match last {
+        Some((chain, result, _)) => Ok((chain, result)),
+        None => first_or_all_rows(first, rig, obs, level),
+    }
+}
+
+/// The fit on every row: the search's first, or a fit when the search fitted none.
+fn first_or_all_rows(
+    first: Option<(SerialChain, FitResult)>,
+    rig: &Rig,
+    obs: &[Observation],
+    level: Level,
+) -> Result<(SerialChain, FitResult), IdentifyError> {
+    match first {
+        Some(fitted) => Ok(fitted),
+        None => identify_at(rig, obs, level),
+    }
 }
 
 /// Outliers judged against the geometric fit at `level`, each removal refitting without the row
-/// (from the last fit, the removed rows downdated: [`GeometricRefits`]); with `stop_at_first`
-/// the search ends at the first row that fails.
-fn geometric_search(
+/// (from the last fit, the removed rows downdated: [`GeometricRefits`]).
+fn geometric_judgement(
     rig: &Rig,
     rec: &Recording,
     level: Level,
     settings: &OutlierSettings,
-    stop_at_first: bool,
-) -> Result<Searched, IdentifyError> {
+) -> Result<GeometricJudgement, IdentifyError> {
     let obs = rec.observations();
     let ids = measured_ids(rec);
     let mut refits = GeometricRefits::new(rig, &obs, level);
+    let mut first = None;
     let mut last = None;
     let search = remove_outliers(&ids, settings, |kept| {
-        if stop_at_first && kept.len() < obs.len() {
-            return Err(Probe::Flagged);
-        }
         // The removed rows stay in the recording (joints, order), they are only not fitted.
-        let (chain, result) = refits.fit(kept).map_err(Probe::Fit)?;
+        let (chain, result) = refits.fit(kept)?;
         let residuals = errors(&chain, &obs, &result.params);
         let p = result.free.len();
-        last = Some((chain, result));
-        Ok::<_, Probe>((residuals, p))
+        if first.is_none() {
+            first = Some((chain.clone(), result.clone()));
+        }
+        last = Some((chain, result, residuals.clone()));
+        Ok::<_, IdentifyError>((residuals, p))
     });
-    match search {
-        Ok((outliers, _)) if outliers.is_empty() => {
-            let (chain, result) = match last {
-                Some(fitted) => fitted,
-                None => identify_at(rig, &obs, level)?,
-            };
-            Ok(Searched::Clean(Box::new((chain, result))))
-        }
-        Ok(_) | Err(OutlierError::TooMany { .. }) | Err(OutlierError::Fit(Probe::Flagged)) => {
-            Ok(Searched::Flagged)
-        }
-        Err(OutlierError::Fit(Probe::Fit(e))) => Err(e),
+    if let Err(OutlierError::Fit(e)) = search {
+        return Err(e);
     }
+    Ok(GeometricJudgement {
+        search,
+        first,
+        last,
+    })
 }
 
 /// The rows judged against the structure the diagnosis finds in the recording (every
@@ -229,7 +292,7 @@ fn judge_against_structure(
     rec: &Recording,
     level: Level,
     settings: &OutlierSettings,
-) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
+) -> Result<Robust, IdentifyError> {
     let obs = rec.observations();
     let (outliers, warning) =
         match crate::diagnosis::outliers::outliers_against_structure(rig, rec, settings) {
@@ -257,37 +320,22 @@ fn geometric_only(
     rec: &Recording,
     level: Level,
     settings: &OutlierSettings,
-) -> Result<(SerialChain, FitResult, Vec<Outlier>, Option<String>), IdentifyError> {
+) -> Result<Robust, IdentifyError> {
     let obs = rec.observations();
-    let ids = measured_ids(rec);
-    let mut refits = GeometricRefits::new(rig, &obs, level);
-    let mut first = None;
-    let mut last = None;
-    let search = remove_outliers(&ids, settings, |kept| {
-        let (chain, result) = refits.fit(kept)?;
-        let residuals = errors(&chain, &obs, &result.params);
-        let p = result.free.len();
-        if first.is_none() {
-            first = Some((chain.clone(), result.clone()));
-        }
-        last = Some((chain, result));
-        Ok::<_, IdentifyError>((residuals, p))
-    });
-    let all_rows = |first: Option<(SerialChain, FitResult)>| match first {
-        Some(fitted) => Ok(fitted),
-        None => identify_at(rig, &obs, level),
-    };
+    let GeometricJudgement {
+        search,
+        first,
+        last,
+    } = geometric_judgement(rig, rec, level, settings)?;
     match search {
         Ok((outliers, _)) => {
-            let (chain, result) = match last {
-                Some(fitted) => fitted,
-                None => all_rows(first)?,
-            };
+            let (chain, result) = last_or_all_rows(last, first, rig, &obs, level)?;
             Ok((chain, result, outliers, None))
         }
         Err(e @ OutlierError::TooMany { .. }) => {
-            let (chain, result) = all_rows(first)?;
-            Ok((chain, result, Vec::new(), Some(e.to_string())))
+            let warning = e.to_string();
+            let (chain, result) = first_or_all_rows(first, rig, &obs, level)?;
+            Ok((chain, result, Vec::new(), Some(warning)))
         }
         Err(OutlierError::Fit(e)) => Err(e),
     }
