@@ -64,7 +64,7 @@ fn demo_runs_sessions_calibrates_evaluates_and_diagnoses() {
         "paper-fig7-model.json",
         "paper-fig8-model.json",
         "paper-fig6-cmac-model.json",
-        "paper-plots/paper-fig6-model/Fig__6_joint_path-errors.svg",
+        "paper-plots/paper-fig6-model/fig-6-joint-path-errors.svg",
         "rig/division/measurements.csv",
         "rig/sec7-model.json",
         "rig/path-cartesian/measurements.csv",

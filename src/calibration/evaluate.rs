@@ -290,6 +290,25 @@ impl PathFiles {
     }
 }
 
+/// A path's name as a file stem a shell need not quote: lower case, letters and digits, one
+/// `-` for each run of anything else ("Fig. 6 joint path" → `fig-6-joint-path`).
+pub fn file_stem(name: &str) -> String {
+    let mut out = String::new();
+    for c in name.chars() {
+        if c.is_ascii_alphanumeric() {
+            out.push(c.to_ascii_lowercase());
+        } else if !out.is_empty() && !out.ends_with('-') {
+            out.push('-');
+        }
+    }
+    let out = out.trim_end_matches('-').to_string();
+    if out.is_empty() {
+        "path".into()
+    } else {
+        out
+    }
+}
+
 /// Writes the plots and the CSV of one path's results into `dir` (created if needed), named
 /// after the path.
 pub fn write_path_files(
@@ -302,7 +321,7 @@ pub fn write_path_files(
         path: dir.to_path_buf(),
         source,
     })?;
-    let stem = path.name.replace([' ', '/', ':', ',', '.'], "_");
+    let stem = file_stem(&path.name);
     let errors = dir.join(format!("{stem}-errors.svg"));
     plot_errors(
         &errors,
@@ -353,4 +372,19 @@ fn errors_csv(results: &[PathResult]) -> String {
         s.push('\n');
     }
     s
+}
+
+#[cfg(test)]
+mod stem_tests {
+    use super::file_stem;
+
+    #[test]
+    fn path_names_become_stems_a_shell_need_not_quote() {
+        assert_eq!(file_stem("Fig. 6 joint path"), "fig-6-joint-path");
+        assert_eq!(
+            file_stem("straight Cartesian path (-300, 350, 30) → (350, 520, 480) mm"),
+            "straight-cartesian-path-300-350-30-350-520-480-mm"
+        );
+        assert_eq!(file_stem("  ./ "), "path");
+    }
 }
