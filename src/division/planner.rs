@@ -313,6 +313,10 @@ pub fn divide(
     })
 }
 
+/// How many design points a region's test may try, per test point wanted, where the rig's reach
+/// cuts regions ([`DivisionOptions::unmeasurable_halves`]).
+const TEST_TOP_UP: usize = 8;
+
 /// The leaf to split next: one that holds the unmeasurable box as a part (its test could not
 /// look there, so it cannot be accepted until the box is a region of its own), else the failing
 /// leaf with the worst test error.
@@ -643,7 +647,19 @@ impl Ctx<'_, '_> {
         // The region's test points are one batch: chosen first, measured as one sequence.
         let mut commands = Vec::new();
         let mut targets = Vec::new();
-        for u in design::test_design(self.opts.test_points) {
+        // Where the rig's reach cuts a region, the locations it cannot measure are replaced by
+        // further design points, so the part it can measure — where a measured path runs — is
+        // judged on the full count, not on the few grid points that happen to fall inside it.
+        let want = self.opts.test_points;
+        let drawn = if self.opts.unmeasurable_halves {
+            want * TEST_TOP_UP
+        } else {
+            want
+        };
+        for u in design::test_design(drawn) {
+            if commands.len() == want {
+                break;
+            }
             let Some((target, command)) = self.test_command(id, b, &u, &model) else {
                 continue;
             };
