@@ -205,3 +205,59 @@ fn the_table_wrapper_enforces_travel_and_ascending_z_within_a_pass() {
     t.begin_pass();
     t.start_move([10.0, 10.0, 50.0], s).unwrap();
 }
+
+const T: Duration = Duration::from_secs(1);
+
+fn refused() -> DeviceError {
+    DeviceError::PoseRefused {
+        pose: [300.0, 0.0, 400.0, -90.0, 0.0],
+        detail: "J3 -120.007° outside -120..0".into(),
+    }
+}
+
+#[test]
+fn the_cartesian_arm_sends_every_move_as_a_pose_and_falls_back_to_joints_only_when_asked() {
+    use rigcal::devices::safety::CartesianArm;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    use std::sync::Arc;
+    let q = vec![0.1, 1.2, -1.9, 0.0, 0.0];
+    // Strict: a refused pose is the caller's error, and no joint command is sent.
+    let mut strict_inner = MockArm::new();
+    strict_inner
+        .expect_start_move_cartesian()
+        .times(1)
+        .returning(|_, _| Err(refused()));
+    strict_inner.expect_start_move().never();
+    let mut strict = CartesianArm::new(strict_inner);
+    assert!(matches!(
+        strict.start_move(&q, T),
+        Err(DeviceError::PoseRefused { .. })
+    ));
+    // With the fallback: the first pose goes through MP, the refused one through MJ to the same
+    // joints, counted once.
+    let mut seq = Sequence::new();
+    let mut inner = MockArm::new();
+    let sent = q.clone();
+    inner
+        .expect_start_move_cartesian()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(move |q, _| Ok(q.to_vec()));
+    inner
+        .expect_start_move_cartesian()
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|_, _| Err(refused()));
+    inner
+        .expect_start_move()
+        .withf(move |q, _| q == sent.as_slice())
+        .times(1)
+        .in_sequence(&mut seq)
+        .returning(|q, _| Ok(q.to_vec()));
+    let n = Arc::new(AtomicUsize::new(0));
+    let mut arm = CartesianArm::with_joint_fallback(inner, Arc::clone(&n));
+    assert_eq!(arm.start_move(&q, T).unwrap(), q);
+    assert_eq!(n.load(Ordering::Relaxed), 0);
+    assert_eq!(arm.start_move(&q, T).unwrap(), q);
+    assert_eq!(n.load(Ordering::Relaxed), 1);
+}

@@ -21,9 +21,8 @@ use super::{
     SessionCalibrated,
 };
 use crate::compensation::{compensate_from, CompensationOptions};
-use crate::devices::{
-    open_rig, Arm, ArmPose, ArmStatus, DeviceError, OpenedRig, RigDevices, SimClock,
-};
+use crate::devices::safety::CartesianArm;
+use crate::devices::{open_rig, OpenedRig, RigDevices, SimClock};
 use crate::division::Space;
 use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkOptions, Robot};
 use crate::model::ModelBody;
@@ -311,62 +310,8 @@ pub fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSp
     })
 }
 
-/// An arm whose every move goes through the controller's Cartesian command (`MP`), except a
-/// move whose `MP` solution the joint limits refuse before anything is sent (a pose within a
-/// few thousandths of a degree of a limit, rounded out of it): that one goes through the joint
-/// command (`MJ`) to the same joints. The count of such moves is shared with the caller.
-struct CartesianFirst {
-    inner: Box<dyn Arm>,
-    fallbacks: Arc<AtomicUsize>,
-}
-
-impl Arm for CartesianFirst {
-    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.inner.home(timeout)
-    }
-    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
-        self.inner.set_speed(level, timeout)
-    }
-    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        let done = self.start_move(q, timeout)?;
-        while !self.inner.wait_moved(timeout)? {}
-        Ok(done)
-    }
-    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        match self.inner.start_move_cartesian(q, timeout) {
-            Err(DeviceError::PoseRefused { .. }) => {
-                self.fallbacks.fetch_add(1, AtomicOrdering::Relaxed);
-                self.inner.start_move(q, timeout)
-            }
-            other => other,
-        }
-    }
-    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
-        self.inner.wait_moved(slice)
-    }
-    fn start_move_cartesian(
-        &mut self,
-        q: &[f64],
-        timeout: Duration,
-    ) -> Result<Vec<f64>, DeviceError> {
-        self.start_move(q, timeout)
-    }
-    fn commanded(&self) -> Option<Vec<f64>> {
-        self.inner.commanded()
-    }
-    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
-        self.inner.where_pose(timeout)
-    }
-    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
-        self.inner.status(timeout)
-    }
-    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
-        self.inner.reset(timeout)
-    }
-}
-
 /// The rig's devices on the emulators of `sc`, every arm move through `MP` when `cartesian`
-/// ([`CartesianFirst`], counting its joint-command moves in `fallbacks`).
+/// ([`CartesianArm::with_joint_fallback`], counting its joint-command moves in `fallbacks`).
 fn emulated_rig(
     rig: &Rig,
     sc: &Scenario,
@@ -378,10 +323,10 @@ fn emulated_rig(
         return Ok(opened);
     }
     let OpenedRig { devices, hook } = opened;
-    let arm = Box::new(CartesianFirst {
-        inner: devices.arm,
-        fallbacks: Arc::clone(fallbacks),
-    });
+    let arm = Box::new(CartesianArm::with_joint_fallback(
+        devices.arm,
+        Arc::clone(fallbacks),
+    ));
     Ok(OpenedRig {
         devices: RigDevices { arm, ..devices },
         hook,

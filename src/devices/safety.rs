@@ -7,6 +7,8 @@
 //!   ascending within a pass: after [`Table::begin_pass`], no move may go lower than the highest
 //!   z of the pass minus the rig file's `pass_retract_mm` (the z arm approaches from below).
 
+use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName, Table};
@@ -124,16 +126,32 @@ impl<A: Arm> Arm for LimitedArm<A> {
 
 /// An [`Arm`] whose every move goes through the controller's Cartesian command: a session run
 /// over it commands poses (`MP`) instead of joints, as a compensated path on a `cartesian` rig
-/// is measured.
+/// is measured. Built [`with_joint_fallback`](Self::with_joint_fallback), a move whose `MP`
+/// solution the joint limits refuse before anything is sent (a pose within a few thousandths of
+/// a degree of a limit, rounded out of it) goes through the joint command (`MJ`) to the same
+/// joints instead, and is counted.
 #[derive(Debug)]
 pub struct CartesianArm<A> {
     inner: A,
+    joint_fallbacks: Option<Arc<AtomicUsize>>,
 }
 
 impl<A: Arm> CartesianArm<A> {
-    /// Wraps `inner`.
+    /// Wraps `inner`: every move through `MP`, a refused pose an error.
     pub fn new(inner: A) -> Self {
-        CartesianArm { inner }
+        CartesianArm {
+            inner,
+            joint_fallbacks: None,
+        }
+    }
+
+    /// Wraps `inner`: every move through `MP`, a refused pose through `MJ`, counted in
+    /// `fallbacks` (shared with the caller).
+    pub fn with_joint_fallback(inner: A, fallbacks: Arc<AtomicUsize>) -> Self {
+        CartesianArm {
+            inner,
+            joint_fallbacks: Some(fallbacks),
+        }
     }
 }
 
@@ -145,10 +163,19 @@ impl<A: Arm> Arm for CartesianArm<A> {
         self.inner.set_speed(level, timeout)
     }
     fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.inner.move_cartesian(q, timeout)
+        self.move_cartesian(q, timeout)
     }
     fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.inner.start_move_cartesian(q, timeout)
+        match (
+            self.inner.start_move_cartesian(q, timeout),
+            &self.joint_fallbacks,
+        ) {
+            (Err(DeviceError::PoseRefused { .. }), Some(n)) => {
+                n.fetch_add(1, AtomicOrdering::Relaxed);
+                self.inner.start_move(q, timeout)
+            }
+            (other, _) => other,
+        }
     }
     fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
         self.inner.wait_moved(slice)
@@ -158,7 +185,7 @@ impl<A: Arm> Arm for CartesianArm<A> {
         q: &[f64],
         timeout: Duration,
     ) -> Result<Vec<f64>, DeviceError> {
-        self.inner.start_move_cartesian(q, timeout)
+        self.start_move(q, timeout)
     }
     fn commanded(&self) -> Option<Vec<f64>> {
         self.inner.commanded()

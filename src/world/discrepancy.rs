@@ -375,11 +375,7 @@ fn exact(v: impl IntoIterator<Item = f64>) -> toml::Value {
 
 /// Seven significant digits: coefficients, well under the noise and readable.
 fn floats(v: impl IntoIterator<Item = f64>) -> toml::Value {
-    toml::Value::Array(
-        v.into_iter()
-            .map(|x| toml::Value::Float(format!("{x:.7e}").parse().unwrap_or(x)))
-            .collect(),
-    )
+    toml::Value::Array(v.into_iter().map(super::write::float).collect())
 }
 
 fn term_table(chain: &SerialChain, x: &DiscrepancyTerm) -> toml::Table {

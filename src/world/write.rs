@@ -37,7 +37,8 @@ pub struct NewEffect {
     pub summary: String,
 }
 
-fn float(v: f64) -> toml::Value {
+/// A TOML float rounded to seven significant digits.
+pub(crate) fn float(v: f64) -> toml::Value {
     // Seven significant digits: well under the noise, and readable.
     let rounded: f64 = format!("{v:.7e}").parse().unwrap_or(v);
     toml::Value::Float(rounded)
