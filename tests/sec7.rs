@@ -118,3 +118,66 @@ fn batches_ascend_in_z(files: &Sec7Files<'_>) {
         "{up} of {steps} steps ascend"
     );
 }
+
+/// `rigcal calibrate --session` on a `cartesian` rig moves the arm through `MP`, as the
+/// section 7 experiment does: the joints it records are the controller's `MP` solutions (on the
+/// servo's 0.001° grid, almost never on the 0.1° grid of `MJ`); the same rig file set to
+/// `joint` records joints on the 0.1° grid.
+#[test]
+fn calibrate_through_a_session_moves_on_the_rigs_command_path() {
+    let root = tempfile::tempdir().unwrap();
+    std::fs::create_dir_all(root.path().join("rigs")).unwrap();
+    std::fs::create_dir_all(root.path().join("sim")).unwrap();
+    let rig_text = std::fs::read_to_string("rigs/rv-m2.toml").unwrap();
+    assert!(rig_text.contains("command_path = \"cartesian\""));
+    std::fs::copy("sim/rig-sec7.toml", root.path().join("sim/rig-sec7.toml")).unwrap();
+    let off_grid_share = |command_path: &str| -> (f64, String) {
+        let rig_file = root.path().join("rigs/rv-m2.toml");
+        std::fs::write(
+            &rig_file,
+            rig_text.replace(
+                "command_path = \"cartesian\"",
+                &format!("command_path = \"{command_path}\""),
+            ),
+        )
+        .unwrap();
+        let dir = root.path().join(format!("session-{command_path}"));
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_rigcal"))
+            .args(["calibrate", "--rig"])
+            .arg(&rig_file)
+            .arg("--sim")
+            .arg(root.path().join("sim/rig-sec7.toml"))
+            .args(["--division", "cartesian", "--accuracy-mm", "0.5"])
+            .args(["--max-regions", "2", "--learner", "none", "--session"])
+            .arg(&dir)
+            .arg("--out")
+            .arg(root.path().join(format!("model-{command_path}.json")))
+            .output()
+            .unwrap();
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        assert!(
+            out.status.success(),
+            "{stdout}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let rig = Rig::load(&rig_file).unwrap();
+        let rec = Recording::read(&dir, rigcal::kinematics::Robot::joints(&rig.chain)).unwrap();
+        let moved: Vec<&[f64]> = rec.rows.iter().map(|m| m.q.as_slice()).collect();
+        let on_grid = |v: f64| {
+            let tenths = v.to_degrees() * 10.0;
+            (tenths - tenths.round()).abs() < 1e-3
+        };
+        let off = moved
+            .iter()
+            .filter(|q| q[..3].iter().any(|&v| !on_grid(v)))
+            .count();
+        assert!(moved.len() >= 20, "{} rows", moved.len());
+        (off as f64 / moved.len() as f64, stdout)
+    };
+    let (cartesian, out) = off_grid_share("cartesian");
+    assert!(cartesian > 0.9, "{cartesian}: {out}");
+    assert!(out.contains("arm moves through MP"), "{out}");
+    let (joint, out) = off_grid_share("joint");
+    assert!(joint < 0.01, "{joint}: {out}");
+    assert!(!out.contains("through MP"), "{out}");
+}

@@ -21,8 +21,7 @@ use super::{
     SessionCalibrated,
 };
 use crate::compensation::{compensate_from, CompensationOptions};
-use crate::devices::safety::CartesianArm;
-use crate::devices::{open_rig, OpenedRig, RigDevices, SimClock};
+use crate::devices::{open_rig, OpenedRig, SimClock};
 use crate::division::Space;
 use crate::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkOptions, Robot};
 use crate::model::ModelBody;
@@ -310,27 +309,15 @@ pub fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSp
     })
 }
 
-/// The rig's devices on the emulators of `sc`, every arm move through `MP` when `cartesian`
-/// ([`CartesianArm::with_joint_fallback`], counting its joint-command moves in `fallbacks`).
+/// The rig's devices on the emulators of `sc`, every arm move on command path `cp`
+/// ([`OpenedRig::on_command_path`], counting its joint-command moves in `fallbacks`).
 fn emulated_rig(
     rig: &Rig,
     sc: &Scenario,
-    cartesian: bool,
+    cp: CommandPath,
     fallbacks: &Arc<AtomicUsize>,
 ) -> Result<OpenedRig, Sec7Error> {
-    let opened = open_rig(rig, Some(sc), SimClock::Virtual)?;
-    if !cartesian {
-        return Ok(opened);
-    }
-    let OpenedRig { devices, hook } = opened;
-    let arm = Box::new(CartesianArm::with_joint_fallback(
-        devices.arm,
-        Arc::clone(fallbacks),
-    ));
-    Ok(OpenedRig {
-        devices: RigDevices { arm, ..devices },
-        hook,
-    })
+    Ok(open_rig(rig, Some(sc), SimClock::Virtual)?.on_command_path(cp, fallbacks))
 }
 
 /// What `session.toml` says about a session of the experiment.
@@ -354,8 +341,7 @@ fn divide(
     progress: &mut dyn FnMut(Sec7Stage),
 ) -> Result<SessionCalibrated, Sec7Error> {
     let dir = files.division_dir();
-    let cartesian = super::rig_check::command_path(rig) == CommandPath::Cartesian;
-    let opened = emulated_rig(rig, sc, cartesian, fallbacks)?;
+    let opened = emulated_rig(rig, sc, super::rig_check::command_path(rig), fallbacks)?;
     let mut so = SessionOptions::new(&dir);
     so.seed = opts.seed;
     so.fsync = false;
@@ -524,7 +510,7 @@ fn path_session(
     // Measured as read back from the file, as a session on the rig does.
     let plan = read_plan(&plan_file, rig)?;
     let estimate = estimate(rig, &plan, &RigSpeeds::of(rig), &ContactSettings::of(rig));
-    let opened = emulated_rig(rig, sc, cp == CommandPath::Cartesian, fallbacks)?;
+    let opened = emulated_rig(rig, sc, cp, fallbacks)?;
     let mut so = SessionOptions::new(&dir);
     so.seed = sc.seed;
     so.fsync = false;

@@ -70,6 +70,7 @@ pub(super) fn calibrate(
         reuse_parent: opts.reuse_parent,
         seed: opts.seed,
         unmeasurable_halves: opts.unmeasurable_halves,
+        learner_tolerance: opts.learner_tolerance,
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();

@@ -7,10 +7,13 @@ use crate::calibration::{
     self, Calibrated, CalibrationError, CalibrationOptions, PlanningFiles, Source,
 };
 use crate::learners::LearnerKind;
+use crate::rig::controller::CommandPath;
 use crate::rig::Rig;
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 
 /// Arguments of `rigcal calibrate`.
 #[derive(Debug, clap::Args)]
@@ -168,7 +171,14 @@ fn through_session(
     if a.resume {
         calibration::refuse_other_options(dir, files, opts)?;
     }
-    let session = open_session(rig, a, dir, calibration::planning_note(files, opts))?;
+    let fallbacks = Arc::new(AtomicUsize::new(0));
+    let session = open_session(
+        rig,
+        a,
+        dir,
+        calibration::planning_note(files, opts),
+        &fallbacks,
+    )?;
     let mut recorded = Vec::new();
     if a.resume {
         recorded = calibration::resumed_requests(rig, dir, session.points_done())?;
@@ -182,24 +192,39 @@ fn through_session(
         calibration::through_session(rig, session, dir, recorded, opts, p)
     })?;
     print!(
-        "{}{}",
+        "{}{}{}",
         s.calibrated.text(),
-        s.session_text(dir, a.sim.is_some())
+        s.session_text(dir, a.sim.is_some()),
+        command_path_text(rig, fallbacks.load(Ordering::Relaxed))
     );
     Ok(s.calibrated)
 }
 
+/// How the session's arm moves went: on a `cartesian` rig through `MP`, with the count that
+/// went through `MJ` instead.
+fn command_path_text(rig: &Rig, mj_moves: usize) -> String {
+    match calibration::rig_check::command_path(rig) {
+        CommandPath::Cartesian => format!(
+            "arm moves through MP (the rig's cartesian command path); {mj_moves} through MJ, their MP solution refused at a joint limit\n"
+        ),
+        CommandPath::Joint => String::new(),
+    }
+}
+
 /// Opens (or resumes) the planning-mode session in `dir` on the rig's devices, or on emulators
-/// of `--sim`'s world; `note` records the options that shaped it.
+/// of `--sim`'s world, every arm move on the rig's command path (`MP` on a `cartesian` rig,
+/// `MJ` moves counted in `fallbacks`); `note` records the options that shaped it.
 fn open_session<'r>(
     rig: &'r Rig,
     a: &Args,
     dir: &Path,
     note: String,
+    fallbacks: &Arc<AtomicUsize>,
 ) -> Result<crate::session::Session<'r>> {
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
     let opened =
-        crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?;
+        crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?
+            .on_command_path(calibration::rig_check::command_path(rig), fallbacks);
     let mut opts = crate::session::SessionOptions::new(dir);
     opts.seed = a.settings.seed;
     opts.resume = a.resume;

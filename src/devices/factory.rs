@@ -9,6 +9,7 @@
 //! A session opens its rig with [`open_rig`]: the devices plus the opaque [`RigHook`] through
 //! which a dry run's world learns what the protocols do not carry (see [`crate::devices::hook`]).
 
+use std::sync::atomic::AtomicUsize;
 use std::sync::{Arc, Mutex};
 
 use crate::devices::arm_movemaster::MovemasterArm;
@@ -23,9 +24,10 @@ use crate::devices::emulators::{
 };
 use crate::devices::hook::{NoHook, RigHook};
 use crate::devices::panel_penmount::PenMountPanel;
-use crate::devices::safety::{LimitedArm, LimitedTable};
+use crate::devices::safety::{CartesianArm, LimitedArm, LimitedTable};
 use crate::devices::table_canopen::CanOpenTable;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
+use crate::rig::controller::CommandPath;
 use crate::rig::devices::{DevicesConfig, TableConfig};
 use crate::rig::{Instrument, Rig, TablePanel};
 use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
@@ -302,6 +304,28 @@ pub struct OpenedRig {
     pub devices: RigDevices,
     /// What the session tells the rig besides commands: nothing on the real rig.
     pub hook: Box<dyn RigHook>,
+}
+
+impl OpenedRig {
+    /// The same rig with every arm move through the controller's Cartesian command (`MP`) when
+    /// `path` is [`CommandPath::Cartesian`] (a rig file's `command_path = "cartesian"`: the
+    /// controller is used that way there); a move whose `MP` solution the joint limits refuse
+    /// goes through `MJ` to the same joints and is counted in `fallbacks`
+    /// ([`CartesianArm::with_joint_fallback`]). Unchanged for [`CommandPath::Joint`].
+    pub fn on_command_path(self, path: CommandPath, fallbacks: &Arc<AtomicUsize>) -> Self {
+        if path != CommandPath::Cartesian {
+            return self;
+        }
+        let OpenedRig { devices, hook } = self;
+        let arm = Box::new(CartesianArm::with_joint_fallback(
+            devices.arm,
+            Arc::clone(fallbacks),
+        ));
+        OpenedRig {
+            devices: RigDevices { arm, ..devices },
+            hook,
+        }
+    }
 }
 
 /// The rig's devices for a session: emulators on `scenario`'s world (on `clock`), or what the

@@ -11,8 +11,11 @@
 //!
 //! Each region's calibrated error parameters (CEPs) are the identifiable basis of the rig,
 //! fitted from the measurements that fall in the region with a weak prior towards its parent's
-//! CEPs, so directions a small region cannot see stay at the parent's values instead of
-//! wandering (the identifiable combinations are unaffected).
+//! CEPs. That prior is weak (σ 0.5 mm, 0.1°): in a small region (κ up to 1e10) the CEPs still
+//! wander along directions that move its predicted points by micrometres. The region model
+//! keeps them (they cancel inside the region); a learner can instead be trained on
+//! [`RegionNode::learner_cep`], where what a region's measurements cannot see is put back to
+//! its parent's ([`DivisionOptions::learner_tolerance`]).
 
 pub mod design;
 mod planner;

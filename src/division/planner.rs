@@ -21,7 +21,7 @@ use crate::compensation::{compensate_from, CompensationOptions};
 use crate::identification::{fit, FitOptions, FitResult, Observation, Prior};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::rig::Rig;
-use nalgebra::DMatrix;
+use nalgebra::{DMatrix, DVector};
 use rand::rngs::ChaCha8Rng;
 use rand::seq::SliceRandom;
 use rand::{RngExt, SeedableRng};
@@ -121,6 +121,12 @@ pub struct DivisionOptions {
     /// the learner generalises there — instead of stopping its parent's split (seed 000
     /// section 7's rig).
     pub unmeasurable_halves: bool,
+    /// The CEPs a learner is trained on ([`RegionNode::learner_cep`]): how far, as a fraction
+    /// of the demanded accuracy (RMS over a region's measurements), the predicted points may
+    /// move when the part of a region's CEP deviation from its parent's that its measurements
+    /// cannot see is put back to the parent's; 0 trains the learner on the regions'
+    /// least-squares CEPs as they are.
+    pub learner_tolerance: f64,
 }
 
 impl Default for DivisionOptions {
@@ -142,6 +148,7 @@ impl Default for DivisionOptions {
             seed: 1,
             unmeasurable: None,
             unmeasurable_halves: false,
+            learner_tolerance: 0.0,
         }
     }
 }
@@ -283,6 +290,10 @@ pub fn divide(
         }
     }
     borrow_neighbour_ceps(&mut root);
+    if let Some(cep) = root.cep.clone() {
+        ctx.set_learner_ceps(&mut root, &cep);
+        root.learner_cep = Some(cep);
+    }
     let all: Vec<Observation> = ctx.data.iter().map(|d| d.obs.clone()).collect();
     let conventional = fit(
         &rig.chain,
@@ -600,6 +611,88 @@ impl Ctx<'_, '_> {
         }
         let cep = self.basis.iter().map(|&i| r.params.get(i)).collect();
         Ok((cep, r.kappa, obs.len()))
+    }
+
+    /// Sets [`RegionNode::learner_cep`] below `node` (whose own learner CEPs are `reference`),
+    /// top-down: each measured region's CEPs with the part of their deviation from its parent's
+    /// learner CEPs that its own measurements cannot see put back to the parent's.
+    fn set_learner_ceps(&self, node: &mut RegionNode, reference: &[f64]) {
+        for child in &mut node.children {
+            let Some(cep) = child.cep.clone() else {
+                continue;
+            };
+            let seen = if child.is_measured() {
+                let obs: Vec<Observation> = self
+                    .in_box(&child.id, &child.bounds)
+                    .into_iter()
+                    .cloned()
+                    .collect();
+                self.seen_part(&obs, &cep, reference)
+            } else {
+                cep
+            };
+            self.set_learner_ceps(child, &seen);
+            child.learner_cep = Some(seen);
+        }
+    }
+
+    /// `cep` with the part of its deviation from `reference` that the measurements `obs` cannot
+    /// see put back to `reference`: a small region is ill-conditioned (κ up to 1e10), and its
+    /// least-squares CEPs wander along directions that move its predicted points by
+    /// micrometres — values that cancel inside the region but not in a learner that blends
+    /// neighbours. Directions of the position Jacobian at `obs` (columns scaled by the prior σ
+    /// so lengths and angles compare) are dropped, weakest first, while the predicted points
+    /// move by at most [`DivisionOptions::learner_tolerance`] × the demanded accuracy, RMS.
+    fn seen_part(&self, obs: &[Observation], cep: &[f64], reference: &[f64]) -> Vec<f64> {
+        let tol = self.opts.learner_tolerance * self.opts.accuracy_mm;
+        if tol <= 0.0 || obs.is_empty() {
+            return cep.to_vec();
+        }
+        let layout = self.rig.chain.layout();
+        let unit: Vec<f64> = self
+            .basis
+            .iter()
+            .map(|&i| {
+                if layout.ids()[i].kind.is_angle() {
+                    self.opts.prior_sigma.1
+                } else {
+                    self.opts.prior_sigma.0
+                }
+            })
+            .collect();
+        let k = self.basis.len();
+        let mut j = DMatrix::zeros(3 * obs.len(), k);
+        for (n, o) in obs.iter().enumerate() {
+            let b = self.block(&o.q);
+            for c in 0..k {
+                for r in 0..3 {
+                    j[(3 * n + r, c)] = b[(r, c)] * unit[c];
+                }
+            }
+        }
+        let d = DVector::from_fn(k, |c, _| (cep[c] - reference[c]) / unit[c]);
+        let svd = j.svd(false, true);
+        let Some(v_t) = svd.v_t else {
+            return cep.to_vec();
+        };
+        let mut weakest_first: Vec<usize> = (0..svd.singular_values.len()).collect();
+        weakest_first.sort_by(|&a, &b| svd.singular_values[a].total_cmp(&svd.singular_values[b]));
+        let budget = tol * tol * obs.len() as f64;
+        let mut moved = 0.0;
+        let mut kept = d.clone();
+        for i in weakest_first {
+            let v = v_t.row(i).transpose();
+            let c = v.dot(&d);
+            // Dropping this direction moves the predicted points by s·c (the columns of U
+            // are orthonormal), and the moves of different directions add in squares.
+            let cost = (svd.singular_values[i] * c).powi(2);
+            if moved + cost > budget {
+                break;
+            }
+            moved += cost;
+            kept -= v * c;
+        }
+        (0..k).map(|c| reference[c] + kept[c] * unit[c]).collect()
     }
 
     /// Measurements a region needs for its fit.

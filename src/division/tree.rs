@@ -41,6 +41,12 @@ pub struct RegionNode {
     /// trained on it: they generalise there.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub borrowed_from: Option<Vec<String>>,
+    /// The CEPs a learner is trained on here: the region's CEPs with the part of their
+    /// deviation from its parent's that its own measurements cannot see put back to the
+    /// parent's ([`DivisionOptions::learner_tolerance`](super::DivisionOptions)); None: the
+    /// CEPs themselves.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub learner_cep: Option<Vec<f64>>,
     /// The two halves, once split.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub children: Vec<RegionNode>,
@@ -63,6 +69,7 @@ impl RegionNode {
             test: None,
             note: None,
             borrowed_from: None,
+            learner_cep: None,
             children: Vec::new(),
         }
     }

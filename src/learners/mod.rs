@@ -152,7 +152,8 @@ impl Learner {
 }
 
 /// Training patterns from a region tree: a lattice of `grid[d]` points per input dimension over
-/// the whole workspace, each asking for the CEPs (scaled to file units) of the leaf it falls in;
+/// the whole workspace, each asking for the CEPs (scaled to file units) of the leaf it falls in
+/// (its [`learner_cep`](crate::division::RegionNode::learner_cep) where the division set them);
 /// points in a leaf whose CEPs were not identified from its own measurements (an unmeasurable
 /// region, whatever it borrowed from its neighbours) are left out, so the learner must
 /// generalise there. A lattice at half the sensor spacing reaches every association cell.
@@ -166,7 +167,8 @@ pub fn patterns_from_tree(tree: &RegionTree, scale: &[f64], grid: [usize; 3]) ->
             for k in 0..grid[2] {
                 let x = [at(0, i), at(1, j), at(2, k)];
                 let leaf = tree.root.leaf_at(&x, &f);
-                let (Some(cep), true) = (&leaf.cep, leaf.is_measured()) else {
+                let cep = leaf.learner_cep.as_ref().or(leaf.cep.as_ref());
+                let (Some(cep), true) = (cep, leaf.is_measured()) else {
                     continue;
                 };
                 out.push(Pattern {

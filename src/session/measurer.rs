@@ -153,21 +153,15 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
     }
 
     /// The next recorded answer, if `q` is what was recorded; the divergence as the error
-    /// otherwise (`None` once the recording is replayed). The arm rounds commands to its
-    /// resolution, so joints within half a step of the request are the same request.
+    /// otherwise (`None` once the recording is replayed). The arm rounds joint commands to its
+    /// resolution, so joints within half a step of the request are the same request. Through
+    /// the Cartesian command the controller solves the rounded pose (0.1 mm, 0.1°) for the
+    /// joints itself, and may land on another wrist solution: there the same request is one
+    /// whose nominal tip lies within the pose rounding of the request's.
     fn replay(&mut self, q: &[f64]) -> Option<Result<Option<Observation>, SessionError>> {
         let r = self.replay.pop_front()?;
         self.replayed += 1;
-        let half_step = self
-            .rig
-            .devices
-            .as_ref()
-            .map_or(0.0, |d| d.arm.resolution_deg.to_radians() / 2.0);
-        let same = r.q.len() == q.len()
-            && r.q
-                .iter()
-                .zip(q)
-                .all(|(a, b)| (a - b).abs() <= half_step + 1e-9);
+        let same = r.q.len() == q.len() && self.same_request(&r.q, q);
         if same {
             return Some(Ok(r.observation));
         }
@@ -189,6 +183,34 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
         Some(Err(diverged))
     }
 }
+
+impl SessionMeasurer<'_, '_> {
+    /// Whether the recorded joints `recorded` answer a request for `asked` (see [`Self::replay`]).
+    fn same_request(&self, recorded: &[f64], asked: &[f64]) -> bool {
+        let Some(arm) = self.rig.devices.as_ref().map(|d| &d.arm) else {
+            return recorded
+                .iter()
+                .zip(asked)
+                .all(|(a, b)| (a - b).abs() <= 1e-9);
+        };
+        let half_step = arm.resolution_deg.to_radians() / 2.0;
+        let joints_agree = recorded
+            .iter()
+            .zip(asked)
+            .all(|(a, b)| (a - b).abs() <= half_step + 1e-9);
+        if joints_agree || arm.command_path != crate::rig::controller::CommandPath::Cartesian {
+            return joints_agree;
+        }
+        let nominal = crate::kinematics::ErrorParams::zeros(self.rig.chain.layout());
+        let tip = |q: &[f64]| self.rig.chain.position(q, &nominal);
+        // The pose's position rounds to 0.1 mm per axis: at most 0.087 mm away.
+        (tip(recorded) - tip(asked)).norm() <= CARTESIAN_SAME_MM
+    }
+}
+
+/// Nominal tips this close are the same request through the Cartesian command: its position
+/// rounding (0.05 mm per axis) with room for the controller's servo rounding.
+const CARTESIAN_SAME_MM: f64 = 0.15;
 
 impl Measurer for SessionMeasurer<'_, '_> {
     fn measure(&mut self, q: &[f64]) -> Result<Option<Observation>, MeasureError> {
