@@ -59,6 +59,11 @@ pub struct Args {
     /// Seed of the divisions, the plans and the learner.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Train every FCMAC and CMAC on the regions' CEPs with what each region's measurements
+    /// cannot see put back to its parent's, moving predicted points by at most this fraction
+    /// of the demanded accuracy (`rigcal calibrate --learner-tolerance`; 0: the paper's).
+    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
+    learner_tolerance: f64,
 }
 
 /// What `summary.json` holds.
@@ -133,6 +138,7 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
     let opts = CalibrationOptions {
         accuracy_mm: a.accuracy_mm,
         seed: a.seed,
+        learner_tolerance: a.learner_tolerance,
         ..Default::default()
     };
     heading(
@@ -318,6 +324,7 @@ fn rig_steps(a: &Args) -> Result<Sec7Report> {
             space: Space::Cartesian,
             accuracy_mm: a.rig_accuracy_mm,
             seed: a.seed,
+            learner_tolerance: a.learner_tolerance,
             unmeasurable_halves: true,
             ..Default::default()
         },
