@@ -352,18 +352,63 @@ struct Columns {
     extra: Vec<usize>,
 }
 
+/// Line numbers from byte offsets: the csv crate's own line count is one short after a CRLF
+/// header, and a person looks for the line an editor shows.
+struct LineIndex<'b> {
+    bytes: &'b [u8],
+    newlines: Vec<u64>,
+}
+
+impl<'b> LineIndex<'b> {
+    fn of(bytes: &'b [u8]) -> Self {
+        let newlines = bytes
+            .iter()
+            .enumerate()
+            .filter(|(_, &b)| b == b'\n')
+            .map(|(i, _)| i as u64)
+            .collect();
+        LineIndex { bytes, newlines }
+    }
+
+    /// The 1-based line of the first byte at or after `offset` that is not a line end (a
+    /// record's position can point at the line ends before it: the rest of a CRLF, or blank
+    /// lines).
+    fn line_at(&self, offset: u64) -> u64 {
+        let skip = self
+            .bytes
+            .iter()
+            .skip(usize::try_from(offset).unwrap_or(usize::MAX))
+            .take_while(|&&b| b == b'\r' || b == b'\n')
+            .count() as u64;
+        self.newlines.partition_point(|&n| n < offset + skip) as u64 + 1
+    }
+
+    /// The line of a record, or of an error, by its position.
+    fn line_of(&self, position: Option<&csv::Position>) -> u64 {
+        position.map_or(0, |p| self.line_at(p.byte()))
+    }
+}
+
 fn read_csv<R: std::io::Read>(
-    input: R,
+    mut input: R,
     path: &Path,
     joints: &[JointSpec],
 ) -> Result<Recording, RecordingError> {
+    let mut bytes = Vec::new();
+    input
+        .read_to_end(&mut bytes)
+        .map_err(|source| RecordingError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    let lines = LineIndex::of(&bytes);
     let mut reader = csv::ReaderBuilder::new()
         .has_headers(true)
         .flexible(false)
-        .from_reader(input);
+        .from_reader(bytes.as_slice());
     let headers = reader
         .headers()
-        .map_err(|e| malformed(path, &e))?
+        .map_err(|e| malformed(path, &e, &lines))?
         .iter()
         .map(|h| h.trim().to_string())
         .collect::<Vec<_>>();
@@ -416,8 +461,8 @@ fn read_csv<R: std::io::Read>(
     rec.extra_columns = cols.extra.iter().map(|&i| headers[i].clone()).collect();
     let mut last_seq: Option<u64> = None;
     for result in reader.records() {
-        let record = result.map_err(|e| malformed(path, &e))?;
-        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let record = result.map_err(|e| malformed(path, &e, &lines))?;
+        let line = lines.line_of(record.position());
         let row = RowReader {
             path,
             line,
@@ -440,8 +485,8 @@ fn read_csv<R: std::io::Read>(
     Ok(rec)
 }
 
-fn malformed(path: &Path, e: &csv::Error) -> RecordingError {
-    let line = e.position().map(|p| p.line()).unwrap_or(0);
+fn malformed(path: &Path, e: &csv::Error, lines: &LineIndex) -> RecordingError {
+    let line = lines.line_of(e.position());
     let reason = match e.kind() {
         csv::ErrorKind::UnequalLengths {
             expected_len, len, ..
@@ -956,6 +1001,21 @@ mod tests {
                 .to_string();
             assert!(e.contains(place) && e.contains(what), "{e}");
             assert!(e.starts_with("r.csv"), "{e}");
+            // The same file written with CRLF line ends names the same line.
+            let crlf = text.replace('\n', "\r\n");
+            let e = read_csv(crlf.as_bytes(), Path::new("r.csv"), &joints())
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(place) && e.contains(what), "CRLF: {e}");
+        }
+    }
+
+    #[test]
+    fn rows_keep_their_file_lines_with_either_line_end() {
+        let text = "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,10,20,1,2,3\n\n2,0,10,20,1,2,3\n";
+        for t in [text.to_string(), text.replace('\n', "\r\n")] {
+            let rec = read_csv(t.as_bytes(), Path::new("r.csv"), &joints()).unwrap();
+            assert_eq!(rec.lines, vec![2, 4], "{t:?}");
         }
     }
 
@@ -1004,14 +1064,15 @@ pub fn read_targets(
     path: &Path,
     joints: &[JointSpec],
 ) -> Result<Vec<(u64, Target)>, RecordingError> {
-    let file = File::open(path).map_err(|source| RecordingError::Io {
+    let bytes = std::fs::read(path).map_err(|source| RecordingError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let mut reader = csv::ReaderBuilder::new().from_reader(file);
+    let lines = LineIndex::of(&bytes);
+    let mut reader = csv::ReaderBuilder::new().from_reader(bytes.as_slice());
     let headers: Vec<String> = reader
         .headers()
-        .map_err(|e| malformed(path, &e))?
+        .map_err(|e| malformed(path, &e, &lines))?
         .iter()
         .map(|h| h.trim().to_string())
         .collect();
@@ -1033,8 +1094,8 @@ pub fn read_targets(
     }
     let mut out = Vec::new();
     for result in reader.records() {
-        let record = result.map_err(|e| malformed(path, &e))?;
-        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let record = result.map_err(|e| malformed(path, &e, &lines))?;
+        let line = lines.line_of(record.position());
         let row = RowReader {
             path,
             line,
