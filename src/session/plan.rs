@@ -32,6 +32,7 @@ use crate::division::{Bounds, DivisionSpace, Space};
 use crate::identification::random_poses;
 use crate::kinematics::{ErrorParams, Robot};
 use crate::rig::{Instrument, Rig, Unmeasurable};
+use crate::session::procedure::{ContactProcedure, BASELINE_BACKOFF_MM};
 
 /// The region id of the drift-reference pose.
 pub const REFERENCE_REGION: &str = "ref";
@@ -621,8 +622,11 @@ pub struct ContactSettings {
     /// speed after the back-off: the locating touch reads at most `locate speed × (panel + bus
     /// latency)` above the true contact, so twice that (at least [`MIN_STANDOFF_MM`], at most
     /// the back-off) leaves the pin clear while only the last fraction of a millimetre is
-    /// crept at the latency-rule speed.
+    /// crept at the latency-rule speed. The baseline procedure creeps the whole back-off:
+    /// its standoff is the back-off.
     pub standoff_mm: f64,
+    /// The procedure these settings are for: the session runs it and the estimate walks it.
+    pub procedure: ContactProcedure,
 }
 
 /// The least standoff of the final approach (mm).
@@ -644,13 +648,42 @@ impl Default for ContactSettings {
 
 impl ContactSettings {
     /// The rig file's `[devices.contact]` (its defaults when the file has none), the standoff
-    /// from its panel and bus latencies.
+    /// from its panel and bus latencies: rigcal's procedure.
     pub fn of(rig: &Rig) -> Self {
         let cfg = rig.devices.clone().unwrap_or_default();
         let latency_s = (cfg.panel.latency_ms + cfg.table.bus_latency_ms).max(0.0) / 1000.0;
         let mut s = ContactSettings::from_config(&cfg.contact);
         s.standoff_mm = final_standoff_mm(s.fast_mm_s, latency_s, s.backoff_mm);
         s
+    }
+
+    /// The settings of `procedure` on `rig`: [`ContactSettings::of`] for rigcal's; for the
+    /// baseline, the back-off at least [`BASELINE_BACKOFF_MM`] and crept whole (the standoff
+    /// at the back-off), every other threshold the rig file's.
+    pub fn for_procedure(rig: &Rig, procedure: ContactProcedure) -> Self {
+        let s = ContactSettings::of(rig);
+        match procedure {
+            ContactProcedure::Rigcal => s,
+            ContactProcedure::Baseline => {
+                let backoff_mm = s.backoff_mm.max(BASELINE_BACKOFF_MM);
+                ContactSettings {
+                    backoff_mm,
+                    standoff_mm: backoff_mm,
+                    procedure,
+                    ..s
+                }
+            }
+        }
+    }
+
+    /// The height the table travels in x-y at (mm) from a contact at `here_z` to a point whose
+    /// lower approach start (its own or its via pose's) is `start_z`: rigcal's
+    /// [`travel_height`]; the baseline's a clearance below both.
+    pub fn travel_z(&self, here_z: f64, start_z: f64) -> f64 {
+        match self.procedure {
+            ContactProcedure::Rigcal => travel_height(here_z, start_z, self.clearance_mm),
+            ContactProcedure::Baseline => (here_z.min(start_z) - self.clearance_mm).max(0.0),
+        }
     }
 
     /// From the `[devices.contact]` section (the standoff from the default latencies).
@@ -667,6 +700,7 @@ impl ContactSettings {
             max_offset_mm: c.max_offset_mm,
             max_disagreement_mm: c.max_disagreement_mm,
             z_tolerance_mm: c.z_tolerance_mm,
+            procedure: ContactProcedure::Rigcal,
         }
     }
 }
@@ -857,7 +891,9 @@ impl Walk<'_> {
     /// it: the table down to its travel height (a clearance below the current contact, or the
     /// approach start when that is lower still), x-y beside the arm's move to the via pose, up
     /// to the approach start beside the arm's move onto the target, the locating approach, the
-    /// back-off, the quick rise to the standoff, the final approach.
+    /// back-off, the quick rise to the standoff, the final approach; or as the baseline
+    /// procedure makes it ([`ContactProcedure::Baseline`]: a clearance below both heights, the
+    /// rise after the arm's move, the whole back-off crept).
     fn contact_point(&mut self, p: &PlannedPoint) -> TimeBreakdown {
         let (c, s) = (self.contact, self.speeds);
         let mut t = TimeBreakdown::default();
@@ -867,7 +903,7 @@ impl Walk<'_> {
         let via_z = table_target(self.rig, &via).map_or(start_z, |v| v[2] - c.margin_mm);
         let rise_z = start_z.min(via_z).max(0.0);
         let here = self.table_at;
-        let clear = travel_height(here[2], rise_z, c.clearance_mm);
+        let clear = c.travel_z(here[2], rise_z);
         if here[2] > clear + 1e-3 {
             t.clearance_s += self.axis_s(here[2], clear, s.table_mm_s);
         }
@@ -881,20 +917,30 @@ impl Walk<'_> {
         } else {
             t.table_s += table;
         }
-        // The arm onto the target while the table rises to the lower of both approach starts.
         let onto = self.arm_s(&via, &p.q);
-        let rise = if rise_z > clear + 1e-3 {
-            self.axis_s(clear, rise_z, s.table_mm_s)
-        } else {
-            0.0
-        };
-        if onto >= rise {
-            t.arm_s += onto;
-        } else {
-            t.clearance_s += rise;
-        }
-        if start_z > rise_z + 1e-3 {
-            t.clearance_s += self.axis_s(rise_z, start_z, s.table_mm_s);
+        match c.procedure {
+            // The arm onto the target, then the table up to the approach start.
+            ContactProcedure::Baseline => {
+                t.arm_s += onto;
+                t.clearance_s += self.axis_s(clear, start_z, s.table_mm_s);
+            }
+            // The arm onto the target while the table rises to the lower of both approach
+            // starts.
+            ContactProcedure::Rigcal => {
+                let rise = if rise_z > clear + 1e-3 {
+                    self.axis_s(clear, rise_z, s.table_mm_s)
+                } else {
+                    0.0
+                };
+                if onto >= rise {
+                    t.arm_s += onto;
+                } else {
+                    t.clearance_s += rise;
+                }
+                if start_z > rise_z + 1e-3 {
+                    t.clearance_s += self.axis_s(rise_z, start_z, s.table_mm_s);
+                }
+            }
         }
         let contact_z = p.table_mm[2];
         let back = contact_z - c.backoff_mm;
