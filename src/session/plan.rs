@@ -437,12 +437,9 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             table_mm: t,
         });
     };
-    let mut since_ref = 0usize;
     let metric = MoveTime::of(rig);
     let window = opts.window_mm.unwrap_or_else(|| z_window_mm(rig));
-    if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
-        push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
-    }
+    let mut seq: Vec<(String, Vec<f64>, [f64; 3])> = Vec::with_capacity(found.len());
     for r in order {
         let mine: Vec<(Vec<f64>, [f64; 3])> = found
             .iter()
@@ -467,18 +464,93 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             }
             _ => layered(mine, opts.layer_mm, opts.order),
         };
-        for (q, t) in ordered {
-            if opts.reference_every > 0 && since_ref == opts.reference_every {
-                if let Some((rq, rt)) = &reference {
-                    push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
-                }
-                since_ref = 0;
-            }
-            push(format!("r{}", r + 1), q, t, &mut points);
-            since_ref += 1;
+        seq.extend(
+            ordered
+                .into_iter()
+                .map(|(q, t)| (format!("r{}", r + 1), q, t)),
+        );
+    }
+    let refs_before = match (&reference, opts.reference_every) {
+        (None, _) | (_, 0) => Vec::new(),
+        (Some(reference), every) => {
+            let flex = if opts.order == Ordering::Optimised {
+                every / REFERENCE_FLEX_DIVISOR
+            } else {
+                0
+            };
+            let contact = ContactSettings::of(rig);
+            let cost = |a: &(Vec<f64>, [f64; 3]), b: &(Vec<f64>, [f64; 3])| {
+                transition_s(&metric, &contact, a, b)
+            };
+            reference_places(&seq, reference, every, flex, &cost)
         }
+    };
+    if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
+        push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
+    }
+    let mut next_ref = refs_before.iter().peekable();
+    for (k, (region, q, t)) in seq.into_iter().enumerate() {
+        if next_ref.next_if(|&&j| j == k).is_some() {
+            if let Some((rq, rt)) = &reference {
+                push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
+            }
+        }
+        push(region, q, t, &mut points);
     }
     Ok(Plan { points, dropped })
+}
+
+/// The drift reference's re-measurements may move this fraction of the interval (1/5: within
+/// ±10 of every 50th point) to where the detour is least, in the optimised order.
+const REFERENCE_FLEX_DIVISOR: usize = 5;
+
+/// The places (indices into `seq`, ascending) before which the drift reference is measured
+/// again: one near every `every`-th point, as many as the fixed schedule (before points
+/// `every`, `2·every`, …), each within `flex` places of its schedule where its detour — to the
+/// reference and back, against the move it interrupts, by `cost` — is least (ties: the
+/// schedule's).
+fn reference_places(
+    seq: &[(String, Vec<f64>, [f64; 3])],
+    reference: &(Vec<f64>, [f64; 3]),
+    every: usize,
+    flex: usize,
+    cost: &impl Fn(&(Vec<f64>, [f64; 3]), &(Vec<f64>, [f64; 3])) -> f64,
+) -> Vec<usize> {
+    let point = |k: usize| (seq[k].1.clone(), seq[k].2);
+    let detour = |k: usize| {
+        if k == 0 {
+            return cost(reference, &point(0));
+        }
+        let (a, b) = (point(k - 1), point(k));
+        cost(&a, reference) + cost(reference, &b) - cost(&a, &b)
+    };
+    let mut places: Vec<usize> = Vec::new();
+    for nominal in (1..).map(|m| m * every).take_while(|&k| k < seq.len()) {
+        let lo = nominal
+            .saturating_sub(flex)
+            .max(places.last().map_or(0, |&p| p + 1));
+        let hi = (nominal + flex).min(seq.len() - 1).max(lo);
+        let best = (lo..=hi)
+            .map(|k| (detour(k) - if k == nominal { 1e-9 } else { 0.0 }, k))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map_or(nominal, |(_, k)| k);
+        places.push(best);
+    }
+    places
+}
+
+/// The rig's time from the contact at `a` to the one at `b` as rigcal's contact procedure
+/// moves (s, nominal heights): the table down to its travel height, the x-y travel beside the
+/// arm ([`MoveTime::between`]), the table up to the approach start.
+fn transition_s(
+    metric: &MoveTime,
+    c: &ContactSettings,
+    a: &(Vec<f64>, [f64; 3]),
+    b: &(Vec<f64>, [f64; 3]),
+) -> f64 {
+    let start = (b.1[2] - c.margin_mm).max(0.0);
+    let h = c.travel_z(a.1[2], start);
+    metric.axis_s(a.1[2] - h) + metric.between(&a.0, &a.1, &b.0, &b.1) + metric.axis_s(start - h)
 }
 
 /// Orders one region's points: ascending z layers, then x-y within a layer; for
