@@ -146,12 +146,10 @@ pub(crate) fn comparison(
     chosen: (Ordering, ContactProcedure),
 ) -> String {
     let reference = variants.first().map_or(0.0, |v| v.estimate.total_s);
-    let mut lines = vec![format!(
-        "rig time of the same points, and the saving against the {}:",
-        variants
-            .first()
-            .map_or_else(String::new, PlannedVariant::label)
-    )];
+    let mut lines = vec![
+        "rig time of the same points; each one's saving against the first, the paper's order and contact procedure:"
+            .to_string(),
+    ];
     for (k, v) in variants.iter().enumerate() {
         let saving = if k == 0 {
             "reference".to_string()
