@@ -14,7 +14,8 @@
 //!   x-y profiles and the arm's largest joint change) by a greedy start and Or-opt/2-opt passes.
 //!   Regions are visited in a seeded random order so
 //!   that time is decorrelated from position, and a drift-reference pose (region `ref`) is
-//!   measured first and then every [`PlanOptions::reference_every`] points.
+//!   measured first and then every [`PlanOptions::reference_every`] points (in the optimised
+//!   order as often, each time within a fifth of the interval where its detour is least).
 //! - Approach directions: each moving joint reaches its target from alternating sides
 //!   ([`approach_signs`]), so backlash is seen from both directions.
 //!
@@ -81,7 +82,9 @@ pub struct PlanOptions {
     pub points: usize,
     /// Number of regions (rounded up to a power of two).
     pub regions: usize,
-    /// Re-measure the drift reference every this many points (0: never).
+    /// Re-measure the drift reference every this many points (0: never; in
+    /// [`Ordering::Optimised`] as often, each time within a fifth of this where its detour is
+    /// least).
     pub reference_every: usize,
     /// Seed of the random draws.
     pub seed: u64,
