@@ -428,7 +428,7 @@ fn shared_options_keep_their_help_per_command() {
 }
 
 #[test]
-fn plan_prints_the_breakdown_and_both_orders() {
+fn plan_prints_the_breakdown_and_the_compared_orders_and_procedures() {
     let dir = tempfile::tempdir().unwrap();
     let out_csv = dir.path().join("p.csv");
     let (ok, out, err) = rigcal(&[
@@ -455,8 +455,10 @@ fn plan_prints_the_breakdown_and_both_orders() {
     ] {
         assert!(out.contains(part), "{part}: {out}");
     }
-    // "estimated rig time A s … (z-then-xy order)", then "the optimised order …: B s; the
-    // z-then-xy order saves P % against it", P = 100 (1 − A / B) from the printed figures.
+    // "estimated rig time A s … (z-then-xy order, rigcal procedure)", then the same points
+    // compared: "z-then-xy order, baseline procedure R s (… h)  reference", "z-then-xy order,
+    // rigcal procedure A s (… h)  saves P % (this plan)", P = 100 (1 − A / R) from the printed
+    // figures, and the optimised order below A.
     let number_after = |text: &str, key: &str| -> f64 {
         let rest = &text[text.find(key).unwrap_or_else(|| panic!("{key}: {text}")) + key.len()..];
         let num: String = rest
@@ -466,12 +468,29 @@ fn plan_prints_the_breakdown_and_both_orders() {
             .collect();
         num.parse().unwrap_or_else(|_| panic!("{key} {rest}"))
     };
-    assert!(out.contains("(z-then-xy order)"), "{out}");
+    assert!(out.contains("(z-then-xy order, rigcal procedure)"), "{out}");
     let a = number_after(&out, "estimated rig time");
-    let b = number_after(&out, "the optimised order of the same points:");
-    let saving = number_after(&out, "the z-then-xy order saves");
-    assert!(b < a, "the optimised order is quicker: {out}");
-    assert!((saving - 100.0 * (1.0 - a / b)).abs() < 0.1, "{out}");
+    let compared = &out[out
+        .find("rig time of the same points")
+        .expect("the comparison")..];
+    let reference = number_after(compared, "z-then-xy order, baseline procedure");
+    let b = number_after(compared, "z-then-xy order, rigcal procedure");
+    assert_eq!(a, b, "{out}");
+    let line = compared
+        .lines()
+        .find(|l| l.contains("z-then-xy order, rigcal procedure"))
+        .unwrap();
+    assert!(line.ends_with("(this plan)"), "{out}");
+    let saving = number_after(line, "saves");
+    assert!(
+        (saving - 100.0 * (1.0 - a / reference)).abs() < 0.1,
+        "{out}"
+    );
+    let optimised = number_after(compared, "optimised order, rigcal procedure");
+    assert!(
+        optimised < a && a < reference,
+        "the optimised order is quicker: {out}"
+    );
     let (ok, _, err) = rigcal(&[
         "plan",
         "--rig",
@@ -487,4 +506,16 @@ fn plan_prints_the_breakdown_and_both_orders() {
         !ok && err.contains("z-then-xy, nearest-neighbour or optimised"),
         "{err}"
     );
+    let (ok, _, err) = rigcal(&[
+        "plan",
+        "--rig",
+        "rigs/rv-m2.toml",
+        "--points",
+        "10",
+        "--procedure",
+        "paper",
+        "--out",
+        s(&out_csv),
+    ]);
+    assert!(!ok && err.contains("baseline or rigcal"), "{err}");
 }

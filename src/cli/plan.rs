@@ -6,8 +6,8 @@
 use crate::kinematics::Robot;
 use crate::rig::Rig;
 use crate::session::{
-    estimate, plan, write_plan, ContactSettings, Ordering, Plan, PlanOptions, RigSpeeds,
-    RigTimeEstimate,
+    compare, plan, saving_pct, write_plan, ContactProcedure, Ordering, Plan, PlanOptions,
+    PlannedVariant, RigTimeEstimate,
 };
 use crate::world::Scenario;
 use anyhow::{Context, Result};
@@ -30,7 +30,8 @@ pub struct Args {
     /// Regions of the workspace (rounded up to a power of two).
     #[arg(long, default_value_t = 8)]
     regions: usize,
-    /// Re-measure the drift-reference pose every N points (0: never).
+    /// Re-measure the drift-reference pose every N points (0: never); in the optimised order
+    /// as often, each time within N/5 points of that where the detour is least.
     #[arg(long, default_value_t = 50)]
     reference_every: usize,
     /// Seed of the random points (default: the scenario's, else 1).
@@ -41,6 +42,12 @@ pub struct Args {
     /// layers greedily. The other order of the same points is estimated beside it.
     #[arg(long, default_value = "optimised")]
     order: Ordering,
+    /// Contact procedure on the table rig: `rigcal` (two-phase final approach, moves
+    /// overlapped) or `baseline` (the paper-style procedure of one move after another, the
+    /// issue's reference). The paper's order with the baseline procedure, with rigcal's, and
+    /// the optimised order with rigcal's are estimated beside the chosen one.
+    #[arg(long, default_value = "rigcal")]
+    procedure: ContactProcedure,
     #[command(flatten)]
     out: super::OutArg,
 }
@@ -133,12 +140,36 @@ pub(crate) fn breakdown(e: &RigTimeEstimate) -> String {
         .join("\n")
 }
 
-/// The order compared against `order`.
-fn other(order: Ordering) -> Ordering {
-    match order {
-        Ordering::ZThenXY => Ordering::Optimised,
-        _ => Ordering::ZThenXY,
+/// The same points in the compared orders and procedures, one a line, each with its saving
+/// against the first (the paper's order with the baseline procedure); `chosen` marked.
+pub(crate) fn comparison(
+    variants: &[PlannedVariant],
+    chosen: (Ordering, ContactProcedure),
+) -> String {
+    let reference = variants.first().map_or(0.0, |v| v.estimate.total_s);
+    let mut lines = vec![
+        "rig time of the same points; each one's saving against the first, the paper's order and contact procedure:"
+            .to_string(),
+    ];
+    for (k, v) in variants.iter().enumerate() {
+        let saving = if k == 0 {
+            "reference".to_string()
+        } else {
+            format!("saves {:.1} %", saving_pct(v.estimate.total_s, reference))
+        };
+        let mark = if (v.order, v.procedure) == chosen {
+            "  (this plan)"
+        } else {
+            ""
+        };
+        lines.push(format!(
+            "  {:<38} {:>7.0} s ({:.2} h)  {saving}{mark}",
+            v.label(),
+            v.estimate.total_s,
+            v.estimate.total_s / 3600.0
+        ));
     }
+    lines.join("\n")
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -156,17 +187,13 @@ pub fn run(a: Args) -> Result<()> {
     let p = plan(&rig, &opts)?;
     report_dropped(&rig, &p, out)?;
     write_plan(out, &rig, &p.points)?;
-    let (speeds, contact) = (RigSpeeds::of(&rig), ContactSettings::of(&rig));
-    let e = estimate(&rig, &p.points, &speeds, &contact);
-    let alt_order = other(a.order);
-    let alt = plan(
-        &rig,
-        &PlanOptions {
-            order: alt_order,
-            ..opts
-        },
-    )?;
-    let alt_e = estimate(&rig, &alt.points, &speeds, &contact);
+    let chosen = (a.order, a.procedure);
+    let variants = compare(&rig, &opts, chosen, &[])?;
+    let e = variants
+        .iter()
+        .find(|v| (v.order, v.procedure) == chosen)
+        .map(|v| v.estimate)
+        .context("the chosen order and procedure among the compared")?;
     println!(
         "planned {} points ({} drift references) → {}",
         p.points.len(),
@@ -176,14 +203,13 @@ pub fn run(a: Args) -> Result<()> {
             .count(),
         out.display()
     );
-    println!("{} ({} order)", describe(&e), a.order.name());
-    println!("{}", breakdown(&e));
     println!(
-        "the {} order of the same points: {:.0} s; the {} order saves {:.1} % against it",
-        alt_order.name(),
-        alt_e.total_s,
+        "{} ({} order, {} procedure)",
+        describe(&e),
         a.order.name(),
-        100.0 * (1.0 - e.total_s / alt_e.total_s.max(1e-9))
+        a.procedure.name()
     );
+    println!("{}", breakdown(&e));
+    println!("{}", comparison(&variants, chosen));
     Ok(())
 }

@@ -10,8 +10,8 @@ use crate::kinematics::Robot;
 use crate::recording::SessionInfo;
 use crate::rig::Rig;
 use crate::session::{
-    estimate, plan, read_plan, registration_points, run_session, write_plan, ContactSettings,
-    Progress, RigSpeeds, SessionOptions,
+    estimate, plan, read_plan, registration_points, run_session, write_plan, ContactProcedure,
+    ContactSettings, Progress, RigSpeeds, SessionOptions,
 };
 use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
@@ -47,6 +47,10 @@ pub struct Args {
     /// Order within a region when planning here (see `rigcal plan --help`).
     #[arg(long, default_value = "optimised")]
     order: crate::session::Ordering,
+    /// Contact procedure on the table rig: `rigcal`, or the paper-style `baseline` (see
+    /// `rigcal plan --help`); a resume keeps the one the session began with.
+    #[arg(long, default_value = "rigcal")]
+    procedure: ContactProcedure,
     /// Poses of the registration step.
     #[arg(long, default_value_t = 12)]
     registration_points: usize,
@@ -85,7 +89,7 @@ pub fn run(a: Args) -> Result<()> {
         &rig,
         &[registration, points.clone()].concat(),
         &RigSpeeds::of(&rig),
-        &ContactSettings::of(&rig),
+        &ContactSettings::for_procedure(&rig, a.procedure),
     );
     println!("{}", super::plan::describe(&est));
     println!("{}", super::plan::breakdown(&est));
@@ -187,13 +191,15 @@ fn session_options(
         })?);
     }
     opts.seed = seed;
+    opts.procedure = a.procedure;
     opts.fsync = a.fsync || !virtual_clock;
     opts.info = SessionInfo {
         rig: Some(a.rig.display().to_string()),
         scenario: a.sim.as_ref().map(|p| p.display().to_string()),
         seed: scenario.map(|s| s.seed),
         notes: Some(format!(
-            "rigcal session: {points} points{}",
+            "rigcal session: {points} points, {} contact procedure{}",
+            a.procedure.name(),
             if virtual_clock {
                 ", dry run on the virtual clock"
             } else {

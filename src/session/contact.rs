@@ -1,13 +1,15 @@
 //! The contact procedure of the table-and-panel rig, per point: the arm goes to a pre-approach
 //! (via) pose while the table travels to the approach start — down to its travel height first
-//! ([`travel_height`]: a clearance below the current contact, or straight to the next approach
+//! ([`travel_height`](crate::session::plan::travel_height): a clearance below the current contact, or straight to the next approach
 //! start when that is lower), then x-y with the arm (both at once) — the arm goes on to the
 //! target while the table rises to the approach start (both at once: that start lies a margin
 //! below the tip at the via pose and at the target), and a two-stage contact follows: a
 //! locating approach at the locating speed, a back-off, a quick rise to the standoff just
 //! below the located contact, and the final approach from there at the latency-rule speed
 //! (conventions §8). Its thresholds are [`ContactSettings`] (`[devices.contact]` of the rig
-//! file).
+//! file). The baseline procedure ([`ContactProcedure::Baseline`]) makes the same steps one
+//! after another: a clearance below both heights, the rise after the arm's last move, the
+//! final approach from the back-off.
 //!
 //! The table keeps ascending z within a pass (the safety wrapper refuses anything lower than
 //! the pass's top minus the retract allowance): a new pass begins with each region, each
@@ -18,9 +20,8 @@ use crate::devices::{DeviceError, DeviceName};
 use crate::rig::{Instrument, Rig};
 use crate::session::core::{Outcome, SessionCore};
 use crate::session::motion::{Motion, IO};
-use crate::session::plan::{
-    approach_signs, table_target, travel_height, via_pose, ContactSettings,
-};
+use crate::session::plan::{approach_signs, table_target, via_pose, ContactSettings};
+use crate::session::procedure::ContactProcedure;
 use crate::session::recovery::{arm_move_lost, handle};
 use crate::session::run::SessionError;
 
@@ -29,7 +30,7 @@ const AT_TARGET_MM: f64 = 1e-3;
 
 /// The contact procedure's settings and its pass state.
 #[derive(Debug)]
-pub(crate) struct ContactProcedure {
+pub(crate) struct TableContact {
     settings: ContactSettings,
     /// Ordinary table moves (mm/s).
     travel_mm_s: f64,
@@ -60,12 +61,12 @@ fn bad_touch(detail: String) -> DeviceError {
     }
 }
 
-impl ContactProcedure {
-    /// The procedure on `rig` with the final approach at `approach_mm_s`.
-    pub fn new(rig: &Rig, approach_mm_s: f64) -> Self {
+impl TableContact {
+    /// `procedure` on `rig` with the final approach at `approach_mm_s`.
+    pub fn new(rig: &Rig, approach_mm_s: f64, procedure: ContactProcedure) -> Self {
         let cfg = rig.devices.clone().unwrap_or_default();
-        ContactProcedure {
-            settings: ContactSettings::of(rig),
+        TableContact {
+            settings: ContactSettings::for_procedure(rig, procedure),
             travel_mm_s: cfg.table.profile_velocity_mm_s,
             approach_mm_s,
             travel_z: match &rig.instrument {
@@ -186,7 +187,7 @@ impl ContactProcedure {
         // A clearance below the current contact, and no higher than the next approach start
         // (below the via pose's tip too).
         let via_z = table_target(core.rig, via).map_or(start[2], |t| t[2] - c.margin_mm);
-        let clear = travel_height(here[2], start[2].min(via_z), c.clearance_mm);
+        let clear = c.travel_z(here[2], start[2].min(via_z));
         self.new_pass_below(core, motion, clear).await?;
         if here[2] > clear + AT_TARGET_MM {
             self.table_to(core, motion, [here[0], here[1], clear])
@@ -305,6 +306,10 @@ impl ContactProcedure {
         q: &[f64],
         start: [f64; 3],
     ) -> Result<Vec<f64>, DeviceError> {
+        if self.settings.procedure == ContactProcedure::Baseline {
+            // One move after another: the table rises once the arm is on the target.
+            return motion.arm_to(q).await;
+        }
         let here = self.table_here(core, motion).await?;
         let rise = [start[0], start[1], self.rise_z.min(start[2])];
         let under =

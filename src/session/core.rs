@@ -174,6 +174,7 @@ impl<'a> SessionCore<'a> {
             csv_bytes,
             rows: self.rows,
             finished,
+            procedure: self.opts.procedure,
         };
         j.save_with(&self.opts.dir, self.opts.fsync)?;
         Ok(())

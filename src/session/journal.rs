@@ -67,6 +67,9 @@ pub struct Journal {
     pub rows: u64,
     /// True once every point is done.
     pub finished: bool,
+    /// The contact procedure the session runs (journals before it was kept: rigcal's).
+    #[serde(default)]
+    pub procedure: crate::session::procedure::ContactProcedure,
 }
 
 impl Journal {

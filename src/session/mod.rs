@@ -19,6 +19,7 @@ pub mod measurer;
 mod motion;
 mod order;
 pub mod plan;
+pub mod procedure;
 mod progress;
 mod recovery;
 mod registration;
@@ -33,6 +34,9 @@ pub use plan::{
     estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
     z_window_mm, ContactSettings, MoveTime, Ordering, Plan, PlanError, PlanOptions, PlannedPoint,
     RigSpeeds, RigTimeEstimate, TimeBreakdown,
+};
+pub use procedure::{
+    compare, plan_variant, saving_pct, ContactProcedure, PlannedVariant, COMPARED,
 };
 pub use progress::Progress;
 pub use run::{run_session, Session, SessionError, SessionOptions, SessionReport};

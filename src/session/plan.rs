@@ -14,7 +14,8 @@
 //!   x-y profiles and the arm's largest joint change) by a greedy start and Or-opt/2-opt passes.
 //!   Regions are visited in a seeded random order so
 //!   that time is decorrelated from position, and a drift-reference pose (region `ref`) is
-//!   measured first and then every [`PlanOptions::reference_every`] points.
+//!   measured first and then every [`PlanOptions::reference_every`] points (in the optimised
+//!   order as often, each time within a fifth of the interval where its detour is least).
 //! - Approach directions: each moving joint reaches its target from alternating sides
 //!   ([`approach_signs`]), so backlash is seen from both directions.
 //!
@@ -32,6 +33,7 @@ use crate::division::{Bounds, DivisionSpace, Space};
 use crate::identification::random_poses;
 use crate::kinematics::{ErrorParams, Robot};
 use crate::rig::{Instrument, Rig, Unmeasurable};
+use crate::session::procedure::{ContactProcedure, BASELINE_BACKOFF_MM};
 
 /// The region id of the drift-reference pose.
 pub const REFERENCE_REGION: &str = "ref";
@@ -80,7 +82,9 @@ pub struct PlanOptions {
     pub points: usize,
     /// Number of regions (rounded up to a power of two).
     pub regions: usize,
-    /// Re-measure the drift reference every this many points (0: never).
+    /// Re-measure the drift reference every this many points (0: never; in
+    /// [`Ordering::Optimised`] as often, each time within a fifth of this where its detour is
+    /// least).
     pub reference_every: usize,
     /// Seed of the random draws.
     pub seed: u64,
@@ -436,12 +440,9 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             table_mm: t,
         });
     };
-    let mut since_ref = 0usize;
     let metric = MoveTime::of(rig);
     let window = opts.window_mm.unwrap_or_else(|| z_window_mm(rig));
-    if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
-        push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
-    }
+    let mut seq: Vec<(String, Vec<f64>, [f64; 3])> = Vec::with_capacity(found.len());
     for r in order {
         let mine: Vec<(Vec<f64>, [f64; 3])> = found
             .iter()
@@ -466,18 +467,93 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             }
             _ => layered(mine, opts.layer_mm, opts.order),
         };
-        for (q, t) in ordered {
-            if opts.reference_every > 0 && since_ref == opts.reference_every {
-                if let Some((rq, rt)) = &reference {
-                    push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
-                }
-                since_ref = 0;
-            }
-            push(format!("r{}", r + 1), q, t, &mut points);
-            since_ref += 1;
+        seq.extend(
+            ordered
+                .into_iter()
+                .map(|(q, t)| (format!("r{}", r + 1), q, t)),
+        );
+    }
+    let refs_before = match (&reference, opts.reference_every) {
+        (None, _) | (_, 0) => Vec::new(),
+        (Some(reference), every) => {
+            let flex = if opts.order == Ordering::Optimised {
+                every / REFERENCE_FLEX_DIVISOR
+            } else {
+                0
+            };
+            let contact = ContactSettings::of(rig);
+            let cost = |a: &(Vec<f64>, [f64; 3]), b: &(Vec<f64>, [f64; 3])| {
+                transition_s(&metric, &contact, a, b)
+            };
+            reference_places(&seq, reference, every, flex, &cost)
         }
+    };
+    if let (Some((q, t)), true) = (&reference, opts.reference_every > 0) {
+        push(REFERENCE_REGION.into(), q.clone(), *t, &mut points);
+    }
+    let mut next_ref = refs_before.iter().peekable();
+    for (k, (region, q, t)) in seq.into_iter().enumerate() {
+        if next_ref.next_if(|&&j| j == k).is_some() {
+            if let Some((rq, rt)) = &reference {
+                push(REFERENCE_REGION.into(), rq.clone(), *rt, &mut points);
+            }
+        }
+        push(region, q, t, &mut points);
     }
     Ok(Plan { points, dropped })
+}
+
+/// The drift reference's re-measurements may move this fraction of the interval (1/5: within
+/// ±10 of every 50th point) to where the detour is least, in the optimised order.
+const REFERENCE_FLEX_DIVISOR: usize = 5;
+
+/// The places (indices into `seq`, ascending) before which the drift reference is measured
+/// again: one near every `every`-th point, as many as the fixed schedule (before points
+/// `every`, `2·every`, …), each within `flex` places of its schedule where its detour — to the
+/// reference and back, against the move it interrupts, by `cost` — is least (ties: the
+/// schedule's).
+fn reference_places(
+    seq: &[(String, Vec<f64>, [f64; 3])],
+    reference: &(Vec<f64>, [f64; 3]),
+    every: usize,
+    flex: usize,
+    cost: &impl Fn(&(Vec<f64>, [f64; 3]), &(Vec<f64>, [f64; 3])) -> f64,
+) -> Vec<usize> {
+    let point = |k: usize| (seq[k].1.clone(), seq[k].2);
+    let detour = |k: usize| {
+        if k == 0 {
+            return cost(reference, &point(0));
+        }
+        let (a, b) = (point(k - 1), point(k));
+        cost(&a, reference) + cost(reference, &b) - cost(&a, &b)
+    };
+    let mut places: Vec<usize> = Vec::new();
+    for nominal in (1..).map(|m| m * every).take_while(|&k| k < seq.len()) {
+        let lo = nominal
+            .saturating_sub(flex)
+            .max(places.last().map_or(0, |&p| p + 1));
+        let hi = (nominal + flex).min(seq.len() - 1).max(lo);
+        let best = (lo..=hi)
+            .map(|k| (detour(k) - if k == nominal { 1e-9 } else { 0.0 }, k))
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .map_or(nominal, |(_, k)| k);
+        places.push(best);
+    }
+    places
+}
+
+/// The rig's time from the contact at `a` to the one at `b` as rigcal's contact procedure
+/// moves (s, nominal heights): the table down to its travel height, the x-y travel beside the
+/// arm ([`MoveTime::between`]), the table up to the approach start.
+fn transition_s(
+    metric: &MoveTime,
+    c: &ContactSettings,
+    a: &(Vec<f64>, [f64; 3]),
+    b: &(Vec<f64>, [f64; 3]),
+) -> f64 {
+    let start = (b.1[2] - c.margin_mm).max(0.0);
+    let h = c.travel_z(a.1[2], start);
+    metric.axis_s(a.1[2] - h) + metric.between(&a.0, &a.1, &b.0, &b.1) + metric.axis_s(start - h)
 }
 
 /// Orders one region's points: ascending z layers, then x-y within a layer; for
@@ -621,8 +697,11 @@ pub struct ContactSettings {
     /// speed after the back-off: the locating touch reads at most `locate speed × (panel + bus
     /// latency)` above the true contact, so twice that (at least [`MIN_STANDOFF_MM`], at most
     /// the back-off) leaves the pin clear while only the last fraction of a millimetre is
-    /// crept at the latency-rule speed.
+    /// crept at the latency-rule speed. The baseline procedure creeps the whole back-off:
+    /// its standoff is the back-off.
     pub standoff_mm: f64,
+    /// The procedure these settings are for: the session runs it and the estimate walks it.
+    pub procedure: ContactProcedure,
 }
 
 /// The least standoff of the final approach (mm).
@@ -644,13 +723,42 @@ impl Default for ContactSettings {
 
 impl ContactSettings {
     /// The rig file's `[devices.contact]` (its defaults when the file has none), the standoff
-    /// from its panel and bus latencies.
+    /// from its panel and bus latencies: rigcal's procedure.
     pub fn of(rig: &Rig) -> Self {
         let cfg = rig.devices.clone().unwrap_or_default();
         let latency_s = (cfg.panel.latency_ms + cfg.table.bus_latency_ms).max(0.0) / 1000.0;
         let mut s = ContactSettings::from_config(&cfg.contact);
         s.standoff_mm = final_standoff_mm(s.fast_mm_s, latency_s, s.backoff_mm);
         s
+    }
+
+    /// The settings of `procedure` on `rig`: [`ContactSettings::of`] for rigcal's; for the
+    /// baseline, the back-off at least [`BASELINE_BACKOFF_MM`] and crept whole (the standoff
+    /// at the back-off), every other threshold the rig file's.
+    pub fn for_procedure(rig: &Rig, procedure: ContactProcedure) -> Self {
+        let s = ContactSettings::of(rig);
+        match procedure {
+            ContactProcedure::Rigcal => s,
+            ContactProcedure::Baseline => {
+                let backoff_mm = s.backoff_mm.max(BASELINE_BACKOFF_MM);
+                ContactSettings {
+                    backoff_mm,
+                    standoff_mm: backoff_mm,
+                    procedure,
+                    ..s
+                }
+            }
+        }
+    }
+
+    /// The height the table travels in x-y at (mm) from a contact at `here_z` to a point whose
+    /// lower approach start (its own or its via pose's) is `start_z`: rigcal's
+    /// [`travel_height`]; the baseline's a clearance below both.
+    pub fn travel_z(&self, here_z: f64, start_z: f64) -> f64 {
+        match self.procedure {
+            ContactProcedure::Rigcal => travel_height(here_z, start_z, self.clearance_mm),
+            ContactProcedure::Baseline => (here_z.min(start_z) - self.clearance_mm).max(0.0),
+        }
     }
 
     /// From the `[devices.contact]` section (the standoff from the default latencies).
@@ -667,6 +775,7 @@ impl ContactSettings {
             max_offset_mm: c.max_offset_mm,
             max_disagreement_mm: c.max_disagreement_mm,
             z_tolerance_mm: c.z_tolerance_mm,
+            procedure: ContactProcedure::Rigcal,
         }
     }
 }
@@ -857,7 +966,9 @@ impl Walk<'_> {
     /// it: the table down to its travel height (a clearance below the current contact, or the
     /// approach start when that is lower still), x-y beside the arm's move to the via pose, up
     /// to the approach start beside the arm's move onto the target, the locating approach, the
-    /// back-off, the quick rise to the standoff, the final approach.
+    /// back-off, the quick rise to the standoff, the final approach; or as the baseline
+    /// procedure makes it ([`ContactProcedure::Baseline`]: a clearance below both heights, the
+    /// rise after the arm's move, the whole back-off crept).
     fn contact_point(&mut self, p: &PlannedPoint) -> TimeBreakdown {
         let (c, s) = (self.contact, self.speeds);
         let mut t = TimeBreakdown::default();
@@ -867,7 +978,7 @@ impl Walk<'_> {
         let via_z = table_target(self.rig, &via).map_or(start_z, |v| v[2] - c.margin_mm);
         let rise_z = start_z.min(via_z).max(0.0);
         let here = self.table_at;
-        let clear = travel_height(here[2], rise_z, c.clearance_mm);
+        let clear = c.travel_z(here[2], rise_z);
         if here[2] > clear + 1e-3 {
             t.clearance_s += self.axis_s(here[2], clear, s.table_mm_s);
         }
@@ -881,20 +992,30 @@ impl Walk<'_> {
         } else {
             t.table_s += table;
         }
-        // The arm onto the target while the table rises to the lower of both approach starts.
         let onto = self.arm_s(&via, &p.q);
-        let rise = if rise_z > clear + 1e-3 {
-            self.axis_s(clear, rise_z, s.table_mm_s)
-        } else {
-            0.0
-        };
-        if onto >= rise {
-            t.arm_s += onto;
-        } else {
-            t.clearance_s += rise;
-        }
-        if start_z > rise_z + 1e-3 {
-            t.clearance_s += self.axis_s(rise_z, start_z, s.table_mm_s);
+        match c.procedure {
+            // The arm onto the target, then the table up to the approach start.
+            ContactProcedure::Baseline => {
+                t.arm_s += onto;
+                t.clearance_s += self.axis_s(clear, start_z, s.table_mm_s);
+            }
+            // The arm onto the target while the table rises to the lower of both approach
+            // starts.
+            ContactProcedure::Rigcal => {
+                let rise = if rise_z > clear + 1e-3 {
+                    self.axis_s(clear, rise_z, s.table_mm_s)
+                } else {
+                    0.0
+                };
+                if onto >= rise {
+                    t.arm_s += onto;
+                } else {
+                    t.clearance_s += rise;
+                }
+                if start_z > rise_z + 1e-3 {
+                    t.clearance_s += self.axis_s(rise_z, start_z, s.table_mm_s);
+                }
+            }
         }
         let contact_z = p.table_mm[2];
         let back = contact_z - c.backoff_mm;

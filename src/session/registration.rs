@@ -11,7 +11,7 @@ use crate::identification::{register, Observation};
 use crate::kinematics::{ErrorParams, Robot};
 use crate::recording::{RegistrationInfo, Status};
 use crate::rig::Instrument;
-use crate::session::contact::ContactProcedure;
+use crate::session::contact::TableContact;
 use crate::session::core::{Outcome, SessionCore};
 use crate::session::motion::Motion;
 use crate::session::plan::{registration_candidates, table_target};
@@ -25,7 +25,7 @@ const REGION: &str = "reg";
 pub(crate) async fn registration_step(
     core: &mut SessionCore<'_>,
     motion: &Motion,
-    contact: Option<&mut ContactProcedure>,
+    contact: Option<&mut TableContact>,
 ) -> Result<(), SessionError> {
     if let Some(info) = core.opts.registration {
         let pose = crate::rig::pose_from_xyz_rpy(info.translation_mm, info.rpy_deg);
@@ -66,7 +66,7 @@ pub(crate) async fn registration_step(
 async fn measure_poses(
     core: &mut SessionCore<'_>,
     motion: &Motion,
-    contact: &mut ContactProcedure,
+    contact: &mut TableContact,
 ) -> Result<Vec<Observation>, SessionError> {
     let rig = core.rig;
     let mut candidates = registration_candidates(rig, core.opts.seed);

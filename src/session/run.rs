@@ -34,11 +34,12 @@ use crate::recording::{
     as_recorded, RecordingError, RecordingWriter, RegistrationInfo, SessionInfo, Status,
 };
 use crate::rig::Rig;
-use crate::session::contact::ContactProcedure;
+use crate::session::contact::TableContact;
 use crate::session::core::{Outcome, SessionCore};
 use crate::session::journal::{Journal, JournalError};
 use crate::session::motion::{Motion, IO, MOVE};
 use crate::session::plan::PlannedPoint;
+use crate::session::procedure::ContactProcedure;
 use crate::session::progress::Progress;
 use crate::session::registration::registration_step;
 use crate::session::sensor::SensorProcedure;
@@ -91,6 +92,16 @@ pub enum SessionError {
         /// Joints recorded (deg or mm).
         recorded_deg: Vec<f64>,
     },
+    /// A resume was asked for another contact procedure than the session began with.
+    #[error("the session in {dir} began with the {journal} contact procedure; resume it with --procedure {journal} (or start a new session for {asked})")]
+    ProcedureDiffers {
+        /// The directory.
+        dir: PathBuf,
+        /// The journal's procedure.
+        journal: ContactProcedure,
+        /// The procedure asked for.
+        asked: ContactProcedure,
+    },
     /// The session's runtime could not be started.
     #[error("cannot start the session's runtime: {0}")]
     Runtime(std::io::Error),
@@ -127,6 +138,9 @@ pub struct SessionOptions {
     /// A registration to reuse (another session's, same rig set-up) instead of the
     /// registration step: both recordings are then in one frame.
     pub registration: Option<RegistrationInfo>,
+    /// The contact procedure on the table-and-panel rig (kept in the journal: a resume runs
+    /// the one the session began with).
+    pub procedure: ContactProcedure,
 }
 
 impl SessionOptions {
@@ -142,6 +156,7 @@ impl SessionOptions {
             fsync: true,
             info: SessionInfo::default(),
             registration: None,
+            procedure: ContactProcedure::Rigcal,
         }
     }
 }
@@ -217,7 +232,7 @@ impl std::fmt::Debug for Session<'_> {
 
 /// The instrument's procedure.
 enum Procedure {
-    Contact(ContactProcedure),
+    Contact(TableContact),
     Sensor(SensorProcedure),
 }
 
@@ -331,7 +346,7 @@ impl<'a> Run<'a> {
             .map_err(dev("setting the arm speed"))?;
         let procedure = if motion.has_table() {
             let approach_mm_s = Self::bring_up_table(&mut motion, &cfg).await?;
-            Procedure::Contact(ContactProcedure::new(rig, approach_mm_s))
+            Procedure::Contact(TableContact::new(rig, approach_mm_s, opts.procedure))
         } else {
             Procedure::Sensor(SensorProcedure::new(rig))
         };
@@ -351,6 +366,15 @@ impl<'a> Run<'a> {
             }
             None
         };
+        if let (Some(j), Procedure::Contact(_)) = (&journal, &procedure) {
+            if j.procedure != opts.procedure {
+                return Err(SessionError::ProcedureDiffers {
+                    dir,
+                    journal: j.procedure,
+                    asked: opts.procedure,
+                });
+            }
+        }
         let writer = open_recording(rig, &csv, journal.as_ref(), opts.fsync)?;
         let clock = std::sync::Arc::clone(motion.pace.clock());
         let resume = opts.resume;
