@@ -43,9 +43,10 @@ pub struct Args {
     #[arg(long, default_value = "optimised")]
     order: Ordering,
     /// Contact procedure on the table rig: `rigcal` (two-phase final approach, moves
-    /// overlapped) or `baseline` (the paper-style procedure of one move after another, the
-    /// issue's reference). The paper's order with the baseline procedure, with rigcal's, and
-    /// the optimised order with rigcal's are estimated beside the chosen one.
+    /// overlapped) or `baseline` (the paper-style procedure: one move after another, a single
+    /// slow final approach). The paper's order with the baseline procedure (the reference
+    /// savings are counted against), with rigcal's, and the optimised order with rigcal's are
+    /// estimated beside the chosen one.
     #[arg(long, default_value = "rigcal")]
     procedure: ContactProcedure,
     #[command(flatten)]

@@ -1,6 +1,6 @@
 //! Which contact procedure a session runs on the table-and-panel rig, and the rig-time
 //! comparison `rigcal plan` prints: the same points in the paper's order with the paper-style
-//! procedure (the reference), in the paper's order with rigcal's procedure, and in the
+//! procedure (the reference to compare with), in the paper's order with rigcal's procedure, and in the
 //! optimised order with rigcal's procedure.
 //!
 //! - [`ContactProcedure::Baseline`]: the procedure the product had before the rig-time work
@@ -71,7 +71,7 @@ impl std::str::FromStr for ContactProcedure {
     }
 }
 
-/// The (order, procedure) pairs `rigcal plan` compares, the reference first.
+/// The (order, procedure) pairs `rigcal plan` compares, the reference (the paper's order and procedure) first.
 pub const COMPARED: [(Ordering, ContactProcedure); 3] = [
     (Ordering::ZThenXY, ContactProcedure::Baseline),
     (Ordering::ZThenXY, ContactProcedure::Rigcal),
