@@ -2,9 +2,10 @@
 //! inverse kinematics, as the Movemaster's `MP` and `WH` use them (conventions §8, §9b).
 //!
 //! Pose convention (RV-M2, five joints): `[x, y, z, pitch, roll]`, x y z the tool point (the pin
-//! tip) in mm in the controller's frame; pitch the elevation of the pin axis above the
-//! controller's horizontal plane (deg, −90..90: `asin` of the pin direction's vertical
-//! component); roll the wrist joint J4 in D-H degrees. In the Table I chain J4 is the wrist
+//! tip) in mm in the controller's frame; pitch the elevation of the pin axis in the arm's
+//! vertical plane from its outward horizontal (deg, −180..180: a pin pointing straight down is
+//! −90, one tilted 1° back towards the base −91, not −89 as an `asin` of the vertical component
+//! would read it); roll the wrist joint J4 in D-H degrees. In the Table I chain J4 is the wrist
 //! joint that turns the pin about the forearm without changing its elevation at the held pose
 //! (it moves the tip sideways, as J1 does), while J5 tilts the pin in the arm's plane together
 //! with J2 and J3; so J4 is what the fifth number must fix, and J1, J2, J3, J5 are solved for
@@ -158,9 +159,32 @@ impl ControllerKinematics {
             p.x,
             p.y,
             p.z,
-            pin.z.clamp(-1.0, 1.0).asin().to_degrees(),
+            self.pitch_deg(q, &e, &pin),
             q.get(ROLL_JOINT).copied().unwrap_or(0.0).to_degrees(),
         ]
+    }
+
+    /// The pin's elevation in the arm's vertical plane from its outward horizontal (deg): an
+    /// `asin` of the vertical component alone reads a pin 1° past vertical as 1° short of it,
+    /// and Newton, started from the joints the arm is at, then lands on the mirror solution
+    /// (J5 tens of degrees off the request, the same tip). Falls back to the `asin` where the
+    /// arm's plane is undefined (J2 axis not horizontal, or the tip on the J1 axis).
+    fn pitch_deg(&self, q: &[f64], e: &ErrorParams, pin: &Vector3<f64>) -> f64 {
+        let elevation = || pin.z.clamp(-1.0, 1.0).asin().to_degrees();
+        let shoulder = self.chain.frame_before_joint(q, e, 1);
+        let across = shoulder.rotation * Vector3::z();
+        let mut outward = Vector3::z().cross(&across);
+        let waist = self.chain.frame_before_joint(q, e, 0).translation.vector;
+        let mut radial = self.chain.position(q, e) - waist;
+        radial.z = 0.0;
+        if across.z.abs() > 0.1 || outward.norm() < 0.5 || radial.norm() < 1.0 {
+            return elevation();
+        }
+        if outward.dot(&radial) < 0.0 {
+            outward = -outward;
+        }
+        let horizontal = pin.dot(&outward.normalize());
+        pin.z.atan2(horizontal).to_degrees()
     }
 
     /// The nominal world position of joints `q` (mm).
@@ -285,5 +309,50 @@ mod tests {
         let d = (k.world_position(&land) - k.world_position(&q)).norm();
         // 0.05 mm per axis at most.
         assert!(d <= 0.05 * 3f64.sqrt() + 1e-9, "{d}");
+    }
+
+    /// A pin a few degrees past vertical is not read as one as far short of it (as an `asin` of
+    /// its vertical component would): the two poses differ in pitch, and the pose of the one,
+    /// solved from the joints of the other, lands back on the one.
+    #[test]
+    fn a_pin_past_vertical_is_not_its_mirror() {
+        let rig = crate::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).unwrap();
+        let k = ControllerKinematics::of_rig(&rig).unwrap();
+        let at = |j5_deg: f64| {
+            vec![
+                0.68f64.to_radians(),
+                15.8f64.to_radians(),
+                (-103.5f64).to_radians(),
+                0.0,
+                j5_deg.to_radians(),
+            ]
+        };
+        // The J5 that points the pin straight down, by bisection on the pitch.
+        let (mut lo, mut hi) = (-60.0, 60.0);
+        let below = |j5: f64| k.pose(&at(j5))[3] < -90.0;
+        assert_ne!(
+            below(lo),
+            below(hi),
+            "the pin passes vertical in the bracket"
+        );
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if below(mid) == below(lo) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        let vertical = 0.5 * (lo + hi);
+        for delta in [-8.0, -3.0, 3.0, 8.0] {
+            let q = at(vertical + delta);
+            let mirror = at(vertical - delta);
+            let (p, m) = (k.pose(&q), k.pose(&mirror));
+            assert!((p[3] - m[3]).abs() > 1.5 * delta.abs(), "{p:?} {m:?}");
+            let back = k.solve(&p, &mirror).unwrap();
+            for (a, b) in back.iter().zip(&q) {
+                assert!((a - b).abs() < 1e-6, "δ {delta}: {back:?} vs {q:?}");
+            }
+        }
     }
 }
