@@ -551,19 +551,26 @@ impl Ctx<'_, '_> {
         self.pose_at(b, &b.centre(), None)
     }
 
-    fn prior(&self, parent: &[f64]) -> Prior {
+    /// The prior σ of each CEP (basis order): lengths (mm) and angles (rad).
+    fn prior_sigmas(&self) -> Vec<f64> {
         let layout = self.rig.chain.layout();
-        let weight = self
-            .basis
+        self.basis
             .iter()
             .map(|&i| {
-                let sigma = if layout.ids()[i].kind.is_angle() {
+                if layout.ids()[i].kind.is_angle() {
                     self.opts.prior_sigma.1
                 } else {
                     self.opts.prior_sigma.0
-                };
-                self.opts.noise_mm / sigma
+                }
             })
+            .collect()
+    }
+
+    fn prior(&self, parent: &[f64]) -> Prior {
+        let weight = self
+            .prior_sigmas()
+            .iter()
+            .map(|sigma| self.opts.noise_mm / sigma)
             .collect();
         Prior {
             mean: expand(self.basis, self.n_params, parent),
@@ -648,18 +655,7 @@ impl Ctx<'_, '_> {
         if tol <= 0.0 || obs.is_empty() {
             return cep.to_vec();
         }
-        let layout = self.rig.chain.layout();
-        let unit: Vec<f64> = self
-            .basis
-            .iter()
-            .map(|&i| {
-                if layout.ids()[i].kind.is_angle() {
-                    self.opts.prior_sigma.1
-                } else {
-                    self.opts.prior_sigma.0
-                }
-            })
-            .collect();
+        let unit = self.prior_sigmas();
         let k = self.basis.len();
         let mut j = DMatrix::zeros(3 * obs.len(), k);
         for (n, o) in obs.iter().enumerate() {

@@ -449,24 +449,11 @@ pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
             .filter(|(reg, _, _)| *reg == r)
             .map(|(_, q, t)| (q.clone(), *t))
             .collect();
-        let ordered = match opts.order {
-            Ordering::Optimised => {
-                let items = mine
-                    .into_iter()
-                    .map(|point| crate::session::order::Item {
-                        lows: vec![point.1[2]],
-                        point,
-                    })
-                    .collect();
-                let rule = crate::session::order::Rule {
-                    window_mm: window,
-                    strand_mm: window,
-                    slots: &[],
-                };
-                crate::session::order::optimised(items, &rule, &metric)
-            }
-            _ => layered(mine, opts.layer_mm, opts.order),
+        let layer_mm = match opts.order {
+            Ordering::Optimised => window,
+            _ => opts.layer_mm,
         };
+        let ordered = order_region_by(mine, layer_mm, opts.order, &metric);
         seq.extend(
             ordered
                 .into_iter()
@@ -564,22 +551,32 @@ pub fn order_region(
     layer_mm: f64,
     order: Ordering,
 ) -> Vec<(Vec<f64>, [f64; 3])> {
-    if order == Ordering::Optimised {
-        let items = pts
-            .into_iter()
-            .map(|point| crate::session::order::Item {
-                lows: vec![point.1[2]],
-                point,
-            })
-            .collect();
-        let rule = crate::session::order::Rule {
-            window_mm: layer_mm,
-            strand_mm: layer_mm,
-            slots: &[],
-        };
-        return crate::session::order::optimised(items, &rule, &MoveTime::table_only());
+    order_region_by(pts, layer_mm, order, &MoveTime::table_only())
+}
+
+/// [`order_region`] with `metric` the move time the optimised order minimises.
+pub fn order_region_by(
+    pts: Vec<(Vec<f64>, [f64; 3])>,
+    layer_mm: f64,
+    order: Ordering,
+    metric: &MoveTime,
+) -> Vec<(Vec<f64>, [f64; 3])> {
+    if order != Ordering::Optimised {
+        return layered(pts, layer_mm, order);
     }
-    layered(pts, layer_mm, order)
+    let items = pts
+        .into_iter()
+        .map(|point| crate::session::order::Item {
+            lows: vec![point.1[2]],
+            point,
+        })
+        .collect();
+    let rule = crate::session::order::Rule {
+        window_mm: layer_mm,
+        strand_mm: layer_mm,
+        slots: &[],
+    };
+    crate::session::order::optimised(items, &rule, metric)
 }
 
 /// The layered orders: ascending z layers of `layer_mm`, then x-y within a layer.
