@@ -281,6 +281,9 @@ impl Calibrated {
 /// How a calibration went.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
+// One value per calibration, read by a person: boxing the division's figures would save
+// nothing that matters and cost every caller a deref.
+#[allow(clippy::large_enum_variant)]
 pub enum Figures {
     /// The variable D-H model: division and learner.
     Division(DivisionFigures),
@@ -357,6 +360,8 @@ pub enum LearnerFigures {
         cells: usize,
         /// Training.
         report: Option<TrainReport>,
+        /// The training on measured points that followed (`--fcmac-training positions`).
+        positions: Option<crate::learners::PositionReport>,
     },
     /// Albus's CMAC.
     Cmac {

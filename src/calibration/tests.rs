@@ -69,6 +69,7 @@ fn offline_from_observations_honours_the_learner_settings_and_design_poses() {
             sensors: Some([9, 7, 5]),
             c: [2, 2, 2],
             cmac_layers: 3,
+            ..Default::default()
         },
         ..coarse()
     };

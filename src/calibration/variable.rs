@@ -111,12 +111,20 @@ pub(super) fn calibrate(
         .iter()
         .map(|&i| report.conventional.params.get(i))
         .collect();
+    let measured = learners::Measured {
+        robot: &rig.chain,
+        space: &report.space,
+        basis: &basis,
+        conventional: &report.conventional.params,
+        observations: &report.observations,
+    };
     let learner = learners::train(
         opts.learner,
         &opts.learner_settings,
         &report.tree,
         &init,
         &scale,
+        Some(&measured),
     );
     let mut figures = figures(&report, opts, mode_name);
     figures.unmeasurable = unmeasurable.map(Box::new);
@@ -157,7 +165,7 @@ pub fn with_learner(
         .ok_or(CalibrationError::NotVariable)?;
     let start = crate::model::params_from_entries(rig, conventional, path)?;
     let init: Vec<f64> = basis.iter().map(|&i| start.get(i)).collect();
-    let trained = learners::train(kind, settings, tree, &init, &cep_scale(rig, &basis));
+    let trained = learners::train(kind, settings, tree, &init, &cep_scale(rig, &basis), None);
     let mut out = model.clone();
     if let ModelBody::Variable { learner: l, .. } = &mut out.model {
         *l = trained;
@@ -253,6 +261,7 @@ fn learner_figures(l: &Learner) -> LearnerFigures {
             c: f.config.c,
             cells: f.cell_count(),
             report: f.report,
+            positions: f.positions,
         },
         Learner::Cmac(c) => LearnerFigures::Cmac {
             layers: c.config.layers,
@@ -429,9 +438,11 @@ impl DivisionFigures {
                 c,
                 cells,
                 report,
+                positions,
             }) => format!(
-                "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {}; {t:.2} s",
-                training(report)
+                "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; on the CEPs: {}{}; {t:.2} s",
+                training(report),
+                positions.map_or_else(String::new, |p| format!("; then {}", p.text()))
             ),
             Some(LearnerFigures::Cmac {
                 layers,

@@ -24,7 +24,7 @@ use crate::calibration::{
 };
 use crate::division::{Selection, Space};
 use crate::kinematics::Robot;
-use crate::learners::LearnerKind;
+use crate::learners::{FcmacTraining, LearnerKind, LearnerSettings};
 use crate::model::{ModelBody, ModelFile};
 use crate::report::{mean_max_rows, PathSpec};
 use crate::rig::Rig;
@@ -64,6 +64,9 @@ pub struct Args {
     /// of the demanded accuracy (`rigcal calibrate --learner-tolerance`; 0: the paper's).
     #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
     learner_tolerance: f64,
+    /// What every FCMAC is trained to reproduce (`rigcal calibrate --fcmac-training`).
+    #[arg(long, value_enum, default_value_t = FcmacTraining::Positions)]
+    fcmac_training: FcmacTraining,
 }
 
 /// What `summary.json` holds.
@@ -139,6 +142,10 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
         accuracy_mm: a.accuracy_mm,
         seed: a.seed,
         learner_tolerance: a.learner_tolerance,
+        learner_settings: LearnerSettings {
+            training: a.fcmac_training,
+            ..Default::default()
+        },
         ..Default::default()
     };
     heading(
@@ -325,6 +332,10 @@ fn rig_steps(a: &Args) -> Result<Sec7Report> {
             accuracy_mm: a.rig_accuracy_mm,
             seed: a.seed,
             learner_tolerance: a.learner_tolerance,
+            learner_settings: LearnerSettings {
+                training: a.fcmac_training,
+                ..Default::default()
+            },
             unmeasurable_halves: true,
             ..Default::default()
         },

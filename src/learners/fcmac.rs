@@ -15,7 +15,7 @@
 //! Weights start at `init` (the conventional CEPs), so cells no pattern reaches — an
 //! unmeasurable region far from any measured one — answer with the whole-workspace CEPs.
 
-use super::{Pattern, Progress, TrainReport};
+use super::{Pattern, PositionReport, Progress, TrainReport};
 use crate::division::Bounds;
 use serde::{Deserialize, Serialize};
 
@@ -69,6 +69,9 @@ pub struct Fcmac {
     pub weights: Vec<f64>,
     /// How training went.
     pub report: Option<TrainReport>,
+    /// How the position-space training that followed went, when it ran.
+    #[serde(default)]
+    pub positions: Option<PositionReport>,
 }
 
 impl Fcmac {
@@ -86,6 +89,7 @@ impl Fcmac {
             outputs,
             weights,
             report: None,
+            positions: None,
         }
     }
 
@@ -145,7 +149,7 @@ impl Fcmac {
     }
 
     /// Excited association cells: (cell index, strength).
-    fn excited(&self, x: &[f64; 3]) -> Vec<(usize, f64)> {
+    pub(super) fn excited(&self, x: &[f64; 3]) -> Vec<(usize, f64)> {
         let a = self.sensors(0, x[0]);
         let b = self.sensors(1, x[1]);
         let c = self.sensors(2, x[2]);

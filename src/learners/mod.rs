@@ -7,12 +7,16 @@
 
 mod cmac;
 mod fcmac;
+mod positions;
 
 pub use cmac::{Cmac, CmacConfig};
 pub use fcmac::{Fcmac, FcmacConfig};
+pub use positions::{PositionReport, PositionSample};
 
 use crate::division::{DivisionSpace, RegionTree, Space};
-use crate::kinematics::{ErrorModel, ErrorParams};
+use crate::identification::identifiability::stacked_jacobian;
+use crate::identification::Observation;
+use crate::kinematics::{ErrorModel, ErrorParams, Robot};
 use serde::{Deserialize, Serialize};
 
 /// A training pattern: an input point and the outputs wanted there.
@@ -256,6 +260,31 @@ pub struct LearnerSettings {
     /// CMAC layers (its generalisation width, as c is the FCMAC's).
     #[arg(long, default_value_t = 3)]
     pub cmac_layers: usize,
+    /// What the FCMAC is trained to reproduce: the regions' CEPs (the paper's (A5)), or, after
+    /// that, the measured points themselves (the same network made right where the instrument
+    /// measured; see `learners::positions`).
+    #[arg(long = "fcmac-training", value_enum, default_value_t = FcmacTraining::Positions)]
+    #[serde(default = "FcmacTraining::paper")]
+    pub training: FcmacTraining,
+}
+
+/// What the FCMAC's training reproduces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum FcmacTraining {
+    /// The regions' CEPs, pattern by pattern (seed 000's appendix, (A5)).
+    Ceps,
+    /// The CEPs, then the measured points: conjugate gradients on the position error, stopped
+    /// where a held-out fifth of the measurements is predicted best (the default).
+    #[default]
+    Positions,
+}
+
+impl FcmacTraining {
+    /// The paper's training, which settings written before the choice existed used.
+    fn paper() -> Self {
+        Self::Ceps
+    }
 }
 
 /// Three counts separated by commas (`17,11,11`).
@@ -274,6 +303,7 @@ impl Default for LearnerSettings {
             sensors: None,
             c: [3, 3, 3],
             cmac_layers: 3,
+            training: FcmacTraining::Positions,
         }
     }
 }
@@ -353,14 +383,67 @@ fn first_joint_input(space: Space) -> usize {
     }
 }
 
+/// The measurements a division used, for an FCMAC trained on positions
+/// ([`FcmacTraining::Positions`]).
+pub struct Measured<'a> {
+    /// The robot, nominal kinematics plus the error parameters of its layout.
+    pub robot: &'a dyn Robot,
+    /// The division space (the learner's input).
+    pub space: &'a DivisionSpace,
+    /// Layout indices of the CEPs.
+    pub basis: &'a [usize],
+    /// The conventional calibration's parameters (the linearisation point).
+    pub conventional: &'a ErrorParams,
+    /// The measurements.
+    pub observations: &'a [Observation],
+}
+
+impl Measured<'_> {
+    /// Samples for an FCMAC whose outputs are CEPs scaled by `scale`: each measurement's input,
+    /// derivative at the conventional parameters (mm per output unit) and residual at the
+    /// network's current outputs.
+    pub fn samples(&self, net: &Fcmac, scale: &[f64]) -> Vec<PositionSample> {
+        let n = self.robot.layout().len();
+        let poses: Vec<Vec<f64>> = self.observations.iter().map(|o| o.q.clone()).collect();
+        let m = stacked_jacobian(self.robot, self.conventional, &poses, self.basis);
+        self.observations
+            .iter()
+            .enumerate()
+            .map(|(i, o)| {
+                let x = self.space.coords(&o.q);
+                let cep: Vec<f64> = net
+                    .predict(&x)
+                    .iter()
+                    .zip(scale)
+                    .map(|(v, s)| v / s)
+                    .collect();
+                let e = crate::division::tree_expand(self.basis, n, &cep);
+                let p = self.robot.position(&o.q, &e);
+                let d = o.p - p;
+                PositionSample {
+                    x,
+                    jacobian: [0, 1, 2].map(|r| {
+                        (0..scale.len())
+                            .map(|k| m[(3 * i + r, k)] / scale[k])
+                            .collect()
+                    }),
+                    residual: [d.x, d.y, d.z],
+                }
+            })
+            .collect()
+    }
+}
+
 /// Trains a learner of `kind` with `settings` on the leaves of `tree`; weights start at `init`
-/// (conventional CEPs, internal units); `scale` converts CEPs to output units.
+/// (conventional CEPs, internal units); `scale` converts CEPs to output units. An FCMAC set to
+/// train on positions does so on `measured` after its CEP training (without it, CEPs only).
 pub fn train(
     kind: LearnerKind,
     settings: &LearnerSettings,
     tree: &RegionTree,
     init: &[f64],
     scale: &[f64],
+    measured: Option<&Measured<'_>>,
 ) -> Option<Learner> {
     let init_scaled: Vec<f64> = init.iter().zip(scale).map(|(v, s)| v * s).collect();
     match kind {
@@ -379,6 +462,10 @@ pub fn train(
             };
             let mut f = Fcmac::starting_at(config, tree.full, &init_scaled, start);
             f.train(&patterns);
+            if let (FcmacTraining::Positions, Some(m)) = (settings.training, measured) {
+                let samples = m.samples(&f, scale);
+                f.train_on_positions(&samples);
+            }
             Some(Learner::Fcmac(f))
         }
         LearnerKind::Cmac => {
