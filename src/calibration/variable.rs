@@ -141,7 +141,9 @@ pub(super) fn calibrate(
 
 /// `model` (a variable D-H model of `rig`) with its learner replaced by one of `kind` trained on
 /// the same region tree from the same conventional start: seed 000's FCMAC-against-CMAC
-/// comparison on one division, no new measurement. `LearnerKind::None` drops the learner.
+/// comparison on one division, no new measurement. `LearnerKind::None` drops the learner. A
+/// model file keeps no measurements, so an FCMAC here learns the CEPs only (the paper's
+/// training), whatever `settings.training` asks.
 pub fn with_learner(
     model: &ModelFile,
     rig: &Rig,

@@ -69,6 +69,16 @@ pub struct Args {
     fcmac_training: FcmacTraining,
 }
 
+impl Args {
+    /// The paper's learner sizes with the FCMAC training asked for.
+    fn learner_settings(&self) -> LearnerSettings {
+        LearnerSettings {
+            training: self.fcmac_training,
+            ..Default::default()
+        }
+    }
+}
+
 /// What `summary.json` holds.
 #[derive(Debug, Serialize)]
 struct DemoSummary {
@@ -142,10 +152,7 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
         accuracy_mm: a.accuracy_mm,
         seed: a.seed,
         learner_tolerance: a.learner_tolerance,
-        learner_settings: LearnerSettings {
-            training: a.fcmac_training,
-            ..Default::default()
-        },
+        learner_settings: a.learner_settings(),
         ..Default::default()
     };
     heading(
@@ -332,10 +339,7 @@ fn rig_steps(a: &Args) -> Result<Sec7Report> {
             accuracy_mm: a.rig_accuracy_mm,
             seed: a.seed,
             learner_tolerance: a.learner_tolerance,
-            learner_settings: LearnerSettings {
-                training: a.fcmac_training,
-                ..Default::default()
-            },
+            learner_settings: a.learner_settings(),
             unmeasurable_halves: true,
             ..Default::default()
         },

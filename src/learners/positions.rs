@@ -44,7 +44,6 @@ pub struct PositionReport {
     /// Conjugate-gradient iterations run (chosen on the held-out fifth).
     pub iterations: usize,
     /// The smoothing weight λ (chosen on the held-out fifth; 0: none).
-    #[serde(default)]
     pub smoothing: f64,
     /// RMS position error (mm) over the measurements after the CEP training.
     pub rms_before_mm: f64,
