@@ -178,6 +178,10 @@ pub struct DivisionSummary {
     /// Random poses the identifiable basis was chosen on (older files: the paper's 100).
     #[serde(default = "paper_design_poses")]
     pub design_poses: usize,
+    /// The learner tolerance the learner's CEPs were made with (a fraction of `accuracy_mm`;
+    /// older files: 0, the paper's).
+    #[serde(default)]
+    pub learner_tolerance: f64,
     /// The box of the division space that could not be measured (seed 000 Fig. 8; internal
     /// units: rad, mm): nothing inside it was measured or fitted.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -191,6 +191,37 @@ fn a_network_learns_from_random_poses_of_a_scenario_but_not_from_a_measurer() {
     assert!(matches!(err, CalibrationError::Scheme(3)), "{err}");
 }
 
+/// The tolerance's default follows the learner: position training starts from tolerant CEPs,
+/// the paper's CEP training and the CMAC from the CEPs as fitted; a given value always wins.
+#[test]
+fn learner_tolerance_defaults_follow_the_training() {
+    let ceps = LearnerSettings {
+        training: FcmacTraining::Ceps,
+        ..LearnerSettings::default()
+    };
+    let cases = [
+        (LearnerKind::Fcmac, LearnerSettings::default(), None, 0.5),
+        (LearnerKind::Fcmac, ceps.clone(), None, 0.0),
+        (LearnerKind::Cmac, LearnerSettings::default(), None, 0.0),
+        (
+            LearnerKind::Fcmac,
+            LearnerSettings::default(),
+            Some(0.2),
+            0.2,
+        ),
+        (LearnerKind::Fcmac, ceps, Some(0.3), 0.3),
+    ];
+    for (learner, learner_settings, learner_tolerance, expected) in cases {
+        let opts = CalibrationOptions {
+            learner,
+            learner_settings,
+            learner_tolerance,
+            ..CalibrationOptions::default()
+        };
+        assert_eq!(opts.learner_tolerance_in_use(), expected, "{opts:?}");
+    }
+}
+
 #[test]
 fn bad_options_and_sources_are_refused_before_measuring() {
     let sc = paper_scenario();
@@ -208,6 +239,10 @@ fn bad_options_and_sources_are_refused_before_measuring() {
                 c: [3, 12, 3],
                 ..LearnerSettings::default()
             },
+            ..coarse()
+        },
+        CalibrationOptions {
+            learner_tolerance: Some(1.5),
             ..coarse()
         },
     ];

@@ -70,7 +70,7 @@ pub(super) fn calibrate(
         reuse_parent: opts.reuse_parent,
         seed: opts.seed,
         unmeasurable_halves: opts.unmeasurable_halves,
-        learner_tolerance: opts.learner_tolerance,
+        learner_tolerance: opts.learner_tolerance_in_use(),
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();
@@ -194,6 +194,7 @@ fn model_file(
         test_measurements: report.test_measurements,
         mode: mode_name.into(),
         design_poses: opts.design_poses,
+        learner_tolerance: opts.learner_tolerance_in_use(),
         unmeasurable,
     };
     ModelFile::new(
@@ -251,6 +252,7 @@ fn figures(r: &DivisionReport, opts: &CalibrationOptions, mode: &str) -> Divisio
         conventional_mm: (r.conventional.after.rms_mm, r.conventional.after.max_mm),
         unmeasurable: None,
         learner: None,
+        learner_tolerance: opts.learner_tolerance_in_use(),
         division_time: Default::default(),
         learner_time: Default::default(),
     }
@@ -431,8 +433,18 @@ impl DivisionFigures {
 
     fn learner_line(&self) -> String {
         let t = self.learner_time.as_secs_f64();
+        let tolerance = if self.learner_tolerance > 0.0 {
+            format!(
+                " (learner tolerance {} × the demand: {:.3} mm RMS)",
+                self.learner_tolerance,
+                self.learner_tolerance * self.accuracy_mm
+            )
+        } else {
+            String::new()
+        };
         let training = |r: &Option<learners::TrainReport>| {
-            r.map_or_else(|| "not trained".to_string(), |r| r.text())
+            let text = r.map_or_else(|| "not trained".to_string(), |r| r.text());
+            format!("on the CEPs{tolerance}: {text}")
         };
         match &self.learner {
             Some(LearnerFigures::Fcmac {
@@ -442,7 +454,7 @@ impl DivisionFigures {
                 report,
                 positions,
             }) => format!(
-                "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; on the CEPs: {}{}; {t:.2} s",
+                "  FCMAC: {sensors:?} sensors, c = {c:?}, {cells} association cells; {}{}; {t:.2} s",
                 training(report),
                 positions.map_or_else(String::new, |p| format!("; then {}", p.text()))
             ),

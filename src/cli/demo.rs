@@ -61,9 +61,10 @@ pub struct Args {
     seed: u64,
     /// Train every FCMAC and CMAC on the regions' CEPs with what each region's measurements
     /// cannot see put back to its parent's, moving predicted points by at most this fraction
-    /// of the demanded accuracy (`rigcal calibrate --learner-tolerance`; 0: the paper's).
-    #[arg(long, value_name = "FRACTION", default_value_t = 0.0)]
-    learner_tolerance: f64,
+    /// of the demanded accuracy (`rigcal calibrate --learner-tolerance`; 0: the paper's)
+    /// [default: 0.5 with position training, 0 with `--fcmac-training ceps`].
+    #[arg(long, value_name = "FRACTION")]
+    learner_tolerance: Option<f64>,
     /// What every FCMAC is trained to reproduce (`rigcal calibrate --fcmac-training`).
     #[arg(long, value_enum, default_value_t = FcmacTraining::Positions)]
     fcmac_training: FcmacTraining,

@@ -20,7 +20,11 @@
 //! carries what the measurements around a cell say into cells they barely excite (an
 //! unmeasurable region); stopping early regularises further. λ and the iteration count are
 //! the pair that predicts a held-out fifth of the measurements best, after which the run is
-//! repeated on all of them. A cell no measurement reaches keeps its CEP training.
+//! repeated on all of them. A cell no measurement reaches keeps its CEP training, so what it
+//! carries there is set by the CEPs that training saw: with a learner tolerance (the default
+//! under this training, [`POSITION_TRAINING_TOLERANCE`](crate::calibration::POSITION_TRAINING_TOLERANCE))
+//! those are the parent's along what a small region cannot see, not the region's wandering
+//! least-squares values; the measured points are put right here either way.
 
 use super::Fcmac;
 use serde::{Deserialize, Serialize};
