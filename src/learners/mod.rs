@@ -269,14 +269,13 @@ pub struct LearnerSettings {
 }
 
 /// What the FCMAC's training reproduces.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum FcmacTraining {
     /// The regions' CEPs, pattern by pattern (seed 000's appendix, (A5)).
     Ceps,
     /// The CEPs, then the measured points: conjugate gradients on the position error, stopped
     /// where a held-out fifth of the measurements is predicted best (the default).
-    #[default]
     Positions,
 }
 
