@@ -5,13 +5,13 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::identification::{random_poses, Observation};
-use rigcal::kinematics::Robot;
-use rigcal::neural::network::Method;
-use rigcal::neural::rig_model::train_on_rig;
-use rigcal::neural::{AngularSum, NkModel, Scheme, TrainConfig};
-use rigcal::reproduce::robots::{Scara2, Scara2Errors, Scara2Real};
-use rigcal::reproduce::seed001::{scara2_spread, TABLE5_LM_ITERATIONS};
+use rigcal_core::kinematics::Robot;
+use rigcal_model::identification::{random_poses, Observation};
+use rigcal_model::neural::network::Method;
+use rigcal_model::neural::rig_model::train_on_rig;
+use rigcal_model::neural::{AngularSum, NkModel, Scheme, TrainConfig};
+use rigcal_paper::reproduce::robots::{Scara2, Scara2Errors, Scara2Real};
+use rigcal_paper::reproduce::seed001::{scara2_spread, TABLE5_LM_ITERATIONS};
 use std::path::Path;
 
 fn table5_network(c: &mut Criterion) {
@@ -57,7 +57,7 @@ fn table5_network(c: &mut Criterion) {
 
 fn rv_m2_network(c: &mut Criterion) {
     let sc =
-        rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).expect("scenario");
+        rigcal_sim::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).expect("scenario");
     let rig = &sc.rig;
     let world = sc.world();
     let poses = random_poses(

@@ -9,15 +9,15 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::compensation::{compensate, CompensationOptions, Compensator};
-use rigcal::identification::{
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::Rig;
+use rigcal_model::compensation::{compensate, CompensationOptions, Compensator};
+use rigcal_model::identification::{
     analyse, candidate_order, fit, identify, random_poses, FitOptions, IdentifyOptions, Level,
     Observation,
 };
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::recording::Recording;
-use rigcal::rig::Rig;
-use rigcal::world::{paper_geometric_errors, World};
+use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
 
 fn setup() -> (Rig, World, Vec<usize>) {
@@ -82,7 +82,7 @@ fn identification(c: &mut Criterion) {
 /// What `rigcal identify` does between reading the rig and printing: the recording read from
 /// its CSV, identified with the outlier search, the model file written. Returns the outliers.
 fn identify_to_model_file(rig: &Rig, rec_dir: &Path, out: &Path) -> usize {
-    use rigcal::model::{ModelFile, Provenance};
+    use rigcal_model::model::{ModelFile, Provenance};
     let rec = Recording::read(rec_dir, rig.chain.joints()).expect("read the recording");
     let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
     let mut file = ModelFile::constant(
@@ -185,7 +185,7 @@ fn compensation(c: &mut Criterion) {
 }
 
 fn diagnosis(c: &mut Criterion) {
-    use rigcal::diagnosis::{diagnose, Options};
+    use rigcal_model::diagnosis::{diagnose, Options};
     let (rig, world, _) = setup();
     let mut rng = ChaCha8Rng::seed_from_u64(4);
     let poses = random_poses(rig.chain.joints(), rig.held(), 600, &mut rng);
@@ -199,15 +199,15 @@ fn diagnosis(c: &mut Criterion) {
 }
 
 fn variable_model(c: &mut Criterion) {
-    use rigcal::calibration::{calibrate, CalibrationOptions, Source};
-    use rigcal::learners::Learner;
-    use rigcal::model::ModelBody;
+    use rigcal_calibration::{calibrate, CalibrationOptions, Source};
+    use rigcal_model::learners::Learner;
+    use rigcal_model::model::ModelBody;
     let mut g = c.benchmark_group("calibrate (division + region fits + FCMAC)");
     g.sample_size(10);
     let mut fcmac = None;
     let mut rig = None;
     for (file, accuracy) in [("sim/paper-fig6.toml", 0.1), ("sim/paper-sim.toml", 0.02)] {
-        let scenario = rigcal::world::Scenario::load(Path::new(file), None).expect("scenario");
+        let scenario = rigcal_sim::world::Scenario::load(Path::new(file), None).expect("scenario");
         // The options `rigcal calibrate --scenario FILE --accuracy A` runs with.
         let opts = CalibrationOptions {
             accuracy_mm: accuracy,

@@ -4,7 +4,7 @@
 //! clock, the measurements and regions are printed once.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rigcal::calibration::sec7::{self, Sec7Files, Sec7Options};
+use rigcal_paper::sec7::{self, Sec7Files, Sec7Options};
 use std::path::Path;
 
 fn dry_run(out: &Path) -> sec7::Sec7Report {

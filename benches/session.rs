@@ -5,12 +5,13 @@
 //! the breakdown, each one's dry-run clock and saving (printed once: they are deterministic).
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rigcal::devices::{open_rig, SimClock};
-use rigcal::session::{
+use rigcal_devices::devices::SimClock;
+use rigcal_devices::session::{
     plan_variant, registration_points, run_session, saving_pct, ContactProcedure, PlanOptions,
     PlannedPoint, Progress, SessionOptions, SessionReport, COMPARED,
 };
-use rigcal::world::Scenario;
+use rigcal_sim::emulation::open_rig;
+use rigcal_sim::world::Scenario;
 use std::path::Path;
 
 fn dry_run(sc: &Scenario, points: &[PlannedPoint], procedure: ContactProcedure) -> SessionReport {

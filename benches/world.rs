@@ -4,9 +4,9 @@
 use criterion::{criterion_group, criterion_main, Criterion};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::identification::random_poses;
-use rigcal::kinematics::Robot;
-use rigcal::world::Scenario;
+use rigcal_core::kinematics::Robot;
+use rigcal_model::identification::random_poses;
+use rigcal_sim::world::Scenario;
 use std::hint::black_box;
 use std::path::Path;
 

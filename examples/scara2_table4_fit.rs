@@ -7,8 +7,8 @@
 //! ratios to the paper's mean and max errors. Run with
 //! `cargo run --release --example scara2_table4_fit`.
 
-use rigcal::kinematics::Robot;
-use rigcal::reproduce::robots::scara2::{Scara2, Scara2Errors, Scara2Real, WorkingArea};
+use rigcal_core::kinematics::Robot;
+use rigcal_paper::reproduce::robots::scara2::{Scara2, Scara2Errors, Scara2Real, WorkingArea};
 
 /// Table 4, [mean, max] (mm) per case.
 const PAPER: [[f64; 2]; 3] = [[6.67, 10.2], [8.93, 17.0], [0.76, 1.26]];

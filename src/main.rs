@@ -1,8 +1,13 @@
 //! The `rigcal` command line. Errors reach the user through `anyhow` here and nowhere else.
 
+#![warn(missing_docs)]
+#![deny(clippy::unwrap_used)]
+
+mod cli;
+
 fn main() -> std::process::ExitCode {
     end_quietly_on_a_closed_pipe();
-    rigcal::cli::main()
+    cli::main()
 }
 
 /// Rust ignores SIGPIPE, so `rigcal … | head` would panic on its next print once `head` has

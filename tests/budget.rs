@@ -4,13 +4,15 @@
 
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::calibration::{self, CalibrationOptions, PathChoice, PathFigures, PathOptions, Source};
-use rigcal::division::select::{choose, log_det_of, Selection};
-use rigcal::division::{divide, DivisionOptions, MeasureError, Measurer, Mode, Space};
-use rigcal::identification::{analyse, candidate_order, random_poses, Observation};
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::model::{ModelBody, ModelFile};
-use rigcal::world::Scenario;
+use rigcal_calibration::{
+    self as calibration, CalibrationOptions, PathChoice, PathFigures, PathOptions, Source,
+};
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_model::division::select::{choose, log_det_of, Selection};
+use rigcal_model::division::{divide, DivisionOptions, MeasureError, Measurer, Mode, Space};
+use rigcal_model::identification::{analyse, candidate_order, random_poses, Observation};
+use rigcal_model::model::{ModelBody, ModelFile};
+use rigcal_sim::world::Scenario;
 use std::path::Path;
 
 const SCENARIO: &str = "sim/paper-fig6.toml";
@@ -112,7 +114,7 @@ impl Measurer for Counting {
     }
 }
 
-fn basis(rig: &rigcal::rig::Rig) -> Vec<usize> {
+fn basis(rig: &rigcal_core::rig::Rig) -> Vec<usize> {
     let design = random_poses(
         rig.chain.joints(),
         rig.held(),

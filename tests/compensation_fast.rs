@@ -4,15 +4,15 @@
 
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::compensation::{
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::recording::Target;
+use rigcal_core::rig::Rig;
+use rigcal_model::compensation::{
     compensate, compensate_from, compensate_targets, CompensationError, CompensationOptions,
     Compensator,
 };
-use rigcal::identification::{analyse, candidate_order, random_poses};
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::recording::Target;
-use rigcal::rig::Rig;
-use rigcal::world::paper_geometric_errors;
+use rigcal_model::identification::{analyse, candidate_order, random_poses};
+use rigcal_sim::world::paper_geometric_errors;
 use std::path::Path;
 
 fn setup() -> (Rig, ErrorParams) {
@@ -25,8 +25,8 @@ fn setup() -> (Rig, ErrorParams) {
 }
 
 fn assert_same(
-    fast: &Result<rigcal::compensation::Compensated, CompensationError>,
-    slow: &Result<rigcal::compensation::Compensated, CompensationError>,
+    fast: &Result<rigcal_model::compensation::Compensated, CompensationError>,
+    slow: &Result<rigcal_model::compensation::Compensated, CompensationError>,
     what: &str,
 ) {
     match (fast, slow) {

@@ -5,13 +5,13 @@ use std::time::Duration;
 
 use mockall::predicate::eq;
 use mockall::Sequence;
-use rigcal::devices::contact::{approach_speed, measure_contact};
-use rigcal::devices::safety::{LimitedArm, LimitedTable};
-use rigcal::devices::{
+use rigcal_core::kinematics::{JointKind, JointSpec};
+use rigcal_devices::devices::contact::{approach_speed, measure_contact};
+use rigcal_devices::devices::safety::{LimitedArm, LimitedTable};
+use rigcal_devices::devices::{
     Arm, DeviceError, DeviceErrorKind, DeviceName, MockArm, MockPanel, MockTable, Panel, Table,
     Touch,
 };
-use rigcal::kinematics::{JointKind, JointSpec};
 
 fn touch() -> Touch {
     Touch {
@@ -217,7 +217,7 @@ fn refused() -> DeviceError {
 
 #[test]
 fn the_cartesian_arm_sends_every_move_as_a_pose_and_falls_back_to_joints_only_when_asked() {
-    use rigcal::devices::safety::CartesianArm;
+    use rigcal_devices::devices::safety::CartesianArm;
     use std::sync::atomic::{AtomicUsize, Ordering};
     use std::sync::Arc;
     let q = vec![0.1, 1.2, -1.9, 0.0, 0.0];

@@ -6,18 +6,18 @@ use std::path::Path;
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use rigcal::devices::arm_movemaster::MovemasterArm;
-use rigcal::devices::clock::RealClock;
-use rigcal::devices::emulators::table::InjectedFault;
-use rigcal::devices::emulators::{serve_bytes, Profile, SlcanAdapter};
-use rigcal::devices::factory::{sim_emulators, SimSetup};
-use rigcal::devices::panel_penmount::PenMountPanel;
-use rigcal::devices::table_canopen::CanOpenTable;
-use rigcal::devices::{Arm, DeviceError, DeviceErrorKind, Panel, Table};
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::rig::devices::DevicesConfig;
-use rigcal::rig::{Instrument, Rig};
-use rigcal::transports::{SerialTransport, SlcanBus, SlcanBusConfig};
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::rig::{Instrument, Rig};
+use rigcal_devices::config::DevicesConfig;
+use rigcal_devices::devices::arm_movemaster::MovemasterArm;
+use rigcal_devices::devices::clock::RealClock;
+use rigcal_devices::devices::emulators::table::InjectedFault;
+use rigcal_devices::devices::emulators::{serve_bytes, Profile, SlcanAdapter};
+use rigcal_devices::devices::factory::{sim_emulators, SimSetup};
+use rigcal_devices::devices::panel_penmount::PenMountPanel;
+use rigcal_devices::devices::table_canopen::CanOpenTable;
+use rigcal_devices::devices::{Arm, DeviceError, DeviceErrorKind, Panel, Table};
+use rigcal_devices::transports::{SerialTransport, SlcanBus, SlcanBusConfig};
 use serialport::TTYPort;
 
 static PTY_LOCK: Mutex<()> = Mutex::new(());
@@ -36,7 +36,7 @@ fn pty_pair() -> (SerialTransport, SerialTransport) {
 
 fn setup() -> (Rig, DevicesConfig, SimSetup) {
     let rig = Rig::load(Path::new("rigs/rv-m2.toml")).unwrap();
-    let mut cfg = rig.devices.clone().unwrap();
+    let mut cfg = DevicesConfig::read_opt(&rig).unwrap();
     cfg.arm.sim_joint_speed_deg_s = 2000.0;
     cfg.arm.sim_reply_ms = 1.0;
     cfg.table.profile_velocity_mm_s = 500.0;
@@ -97,7 +97,10 @@ fn arm_over_a_pseudo_terminal_homes_moves_reads_back_and_recovers_from_error_mod
         waited >= Duration::from_millis(150) && waited < Duration::from_secs(1),
         "{waited:?}"
     );
-    assert_eq!(arm.status(T).unwrap(), rigcal::devices::ArmStatus::Ok);
+    assert_eq!(
+        arm.status(T).unwrap(),
+        rigcal_devices::devices::ArmStatus::Ok
+    );
 }
 
 #[test]

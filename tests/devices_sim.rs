@@ -5,11 +5,13 @@
 use std::path::Path;
 use std::time::Duration;
 
-use rigcal::devices::contact::{approach_speed, measure_contact};
-use rigcal::devices::emulators::table::InjectedFault;
-use rigcal::devices::{open_devices, Backend, DeviceError, DeviceErrorKind, RigDevices, SimSetup};
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::rig::{Instrument, Rig};
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::rig::{Instrument, Rig};
+use rigcal_devices::devices::contact::{approach_speed, measure_contact};
+use rigcal_devices::devices::emulators::table::InjectedFault;
+use rigcal_devices::devices::{
+    open_devices, Backend, DeviceError, DeviceErrorKind, RigDevices, SimSetup,
+};
 
 const T: Duration = Duration::from_secs(30);
 
@@ -92,10 +94,13 @@ fn arm_error_mode_is_reported_with_its_command_and_reset_only_when_safe() {
     assert_eq!(d.arm.commanded(), before);
     assert_eq!(
         d.arm.status(T).unwrap(),
-        rigcal::devices::ArmStatus::PositionError
+        rigcal_devices::devices::ArmStatus::PositionError
     );
     d.arm.reset(T).unwrap();
-    assert_eq!(d.arm.status(T).unwrap(), rigcal::devices::ArmStatus::Ok);
+    assert_eq!(
+        d.arm.status(T).unwrap(),
+        rigcal_devices::devices::ArmStatus::Ok
+    );
     d.arm
         .move_to(&deg(&[5.0, 80.0, -60.0, 0.0, 0.0]), T)
         .unwrap();
@@ -146,7 +151,10 @@ fn arm_waits_time_out_and_garbled_replies_are_protocol_errors() {
     faults.lock().unwrap().garble_replies = 1;
     let e = d.arm.status(T).unwrap_err();
     assert_eq!(e.kind(), DeviceErrorKind::Protocol, "{e}");
-    assert_eq!(d.arm.status(T).unwrap(), rigcal::devices::ArmStatus::Ok);
+    assert_eq!(
+        d.arm.status(T).unwrap(),
+        rigcal_devices::devices::ArmStatus::Ok
+    );
 }
 
 #[test]
@@ -483,21 +491,21 @@ fn the_rig_file_backend_opens_the_simulated_devices_it_names() {
     d.table().unwrap().enable(T).unwrap();
     assert_eq!(
         d.panel().unwrap().stats(),
-        rigcal::devices::PanelStats::default()
+        rigcal_devices::devices::PanelStats::default()
     );
 }
 
 #[test]
 fn threaded_emulators_serve_canopen_over_the_simulated_bus_and_movemaster_over_a_pipe() {
-    use rigcal::devices::arm_movemaster::MovemasterArm;
-    use rigcal::devices::clock::RealClock;
-    use rigcal::devices::emulators::{serve_bytes, serve_frames};
-    use rigcal::devices::factory::sim_emulators;
-    use rigcal::devices::table_canopen::CanOpenTable;
-    use rigcal::devices::{Arm, Table};
-    use rigcal::transports::{PipeTransport, SimBus};
+    use rigcal_devices::devices::arm_movemaster::MovemasterArm;
+    use rigcal_devices::devices::clock::RealClock;
+    use rigcal_devices::devices::emulators::{serve_bytes, serve_frames};
+    use rigcal_devices::devices::factory::sim_emulators;
+    use rigcal_devices::devices::table_canopen::CanOpenTable;
+    use rigcal_devices::devices::{Arm, Table};
+    use rigcal_devices::transports::{PipeTransport, SimBus};
     let rig = rig();
-    let mut cfg = rig.devices.clone().unwrap();
+    let mut cfg = rigcal_devices::config::DevicesConfig::read_opt(&rig).unwrap();
     cfg.arm.sim_joint_speed_deg_s = 2000.0;
     cfg.table.profile_velocity_mm_s = 500.0;
     cfg.table.profile_acceleration_mm_s2 = 5000.0;
@@ -555,7 +563,7 @@ fn waiting_for_the_table_times_out_with_target_and_position() {
 
 #[test]
 fn cartesian_moves_send_mp_and_land_within_the_command_rounding() {
-    use rigcal::rig::controller::ControllerKinematics;
+    use rigcal_devices::devices::controller::ControllerKinematics;
     let rig = rig();
     let mut d = devices(&rig);
     let sim = d.sim.clone().unwrap();
@@ -583,7 +591,7 @@ fn cartesian_moves_send_mp_and_land_within_the_command_rounding() {
         let sent = sim.arm.as_ref().unwrap().lock().unwrap().received.clone();
         let pose = ControllerKinematics::rounded(&k.pose(&q));
         let text = String::from_utf8(
-            rigcal::protocols::movemaster::Command::move_pose(&pose)
+            rigcal_devices::protocols::movemaster::Command::move_pose(&pose)
                 .unwrap()
                 .encode(),
         )

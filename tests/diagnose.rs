@@ -9,11 +9,11 @@
 
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::diagnosis::{diagnose, Options, Report};
-use rigcal::identification::random_poses;
-use rigcal::kinematics::Robot;
-use rigcal::recording::Recording;
-use rigcal::world::Scenario;
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::Recording;
+use rigcal_model::diagnosis::{diagnose, Options, Report};
+use rigcal_model::identification::random_poses;
+use rigcal_sim::world::Scenario;
 use std::path::Path;
 
 /// Scenario text on `rig` (ideal or table) with random geometric errors, `effects` (TOML

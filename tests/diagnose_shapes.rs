@@ -14,7 +14,7 @@
 mod common;
 
 use common::shapes::*;
-use rigcal::diagnosis::{diagnose, Options, Report};
+use rigcal_model::diagnosis::{diagnose, Options, Report};
 use std::time::Instant;
 
 /// `kind:index` of each named effect, as `tests/diagnose.rs` names them.

@@ -13,11 +13,11 @@ mod common;
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::identification::{analyse, candidate_order, random_poses};
-use rigcal::kinematics::{ErrorParams, Robot, TransformId};
-use rigcal::recording::Recording;
-use rigcal::rig::{Instrument, Rig};
-use rigcal::world::{Backlash, Effect, MeasurementSettings, World};
+use rigcal_core::kinematics::{ErrorParams, Robot, TransformId};
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::{Instrument, Rig};
+use rigcal_model::identification::{analyse, candidate_order, random_poses};
+use rigcal_sim::world::{Backlash, Effect, MeasurementSettings, World};
 use std::path::Path;
 use std::process::Command;
 use std::sync::Arc;
@@ -242,7 +242,7 @@ fn no_effect_hidden_claims_nothing_on_tracker_recordings() {
 
 #[test]
 fn urdf_link_masses_give_joint_compliance_in_deg_per_nm() {
-    use rigcal::world::{JointCompliance, PointMass};
+    use rigcal_sim::world::{JointCompliance, PointMass};
     let dir = tempfile::tempdir().expect("tempdir");
     let (rig, rig_path) = common::synthetic8::rig_in(dir.path());
     // The rig's link masses sit where the URDF puts them, at any joint values.
@@ -326,7 +326,7 @@ fn urdf_link_masses_give_joint_compliance_in_deg_per_nm() {
 #[test]
 #[ignore]
 fn tracker_rates() {
-    use rigcal::diagnosis::{diagnose, Options};
+    use rigcal_model::diagnosis::{diagnose, Options};
     let seeds: u64 = std::env::var("RIGCAL_RATE_SEEDS")
         .ok()
         .and_then(|s| s.parse().ok())

@@ -5,14 +5,14 @@
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::compensation::{compensate, CompensationOptions};
-use rigcal::division::{divide, DivisionOptions, Measurer, Mode, RegionModel};
-use rigcal::identification::{
+use rigcal_core::kinematics::{ErrorModel, ErrorParams, Robot};
+use rigcal_core::rig::Rig;
+use rigcal_model::compensation::{compensate, CompensationOptions};
+use rigcal_model::division::{divide, DivisionOptions, Measurer, Mode, RegionModel};
+use rigcal_model::identification::{
     analyse, candidate_order, random_poses, Identifiability, Observation,
 };
-use rigcal::kinematics::{ErrorModel, ErrorParams, Robot};
-use rigcal::rig::Rig;
-use rigcal::world::paper_geometric_errors;
+use rigcal_sim::world::paper_geometric_errors;
 use std::path::Path;
 
 /// A test arm: geometric errors plus joint errors Δq_i = Σ_j a_ij cos q_j + b_ij sin q_j.
@@ -53,9 +53,12 @@ impl Measurer for TrigArm {
     fn measure(
         &mut self,
         q: &[f64],
-    ) -> Result<Option<rigcal::identification::Observation>, rigcal::division::MeasureError> {
+    ) -> Result<
+        Option<rigcal_model::identification::Observation>,
+        rigcal_model::division::MeasureError,
+    > {
         self.count += 1;
-        Ok(Some(rigcal::identification::Observation {
+        Ok(Some(rigcal_model::identification::Observation {
             q: q.to_vec(),
             p: self.truth(q),
         }))
@@ -206,7 +209,7 @@ impl Measurer for Recorder<'_> {
     fn measure(
         &mut self,
         q: &[f64],
-    ) -> Result<Option<Observation>, rigcal::division::MeasureError> {
+    ) -> Result<Option<Observation>, rigcal_model::division::MeasureError> {
         self.asked.push(q.to_vec());
         self.inner.measure(q)
     }
@@ -217,10 +220,10 @@ impl Measurer for Recorder<'_> {
 /// CEPs, and no learner pattern lies inside it.
 #[test]
 fn planning_never_measures_inside_the_unmeasurable_region() {
-    use rigcal::calibration::{calibrate, CalibrationOptions, Source, WorldMeasurer};
-    use rigcal::division::{Bounds, DivisionSpace, Space};
-    use rigcal::model::ModelBody;
-    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    use rigcal_calibration::{calibrate, CalibrationOptions, Source, WorldMeasurer};
+    use rigcal_model::division::{Bounds, DivisionSpace, Space};
+    use rigcal_model::model::ModelBody;
+    let sc = rigcal_sim::world::Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
     let rig = &sc.rig;
     let at = [92.0, 75.0, -22.0];
     let depth = 5;
@@ -279,7 +282,7 @@ fn planning_never_measures_inside_the_unmeasurable_region() {
     for n in &neighbours {
         assert!(n.bounds.shares_face(&hole) && n.is_measured(), "{}", n.id);
     }
-    let patterns = rigcal::learners::patterns_from_tree(tree, &[1.0; 15], [33, 21, 21]);
+    let patterns = rigcal_model::learners::patterns_from_tree(tree, &[1.0; 15], [33, 21, 21]);
     assert!(!patterns.is_empty());
     assert!(patterns.iter().all(|p| !hole.contains(&p.x, &tree.full)));
 }
@@ -289,9 +292,9 @@ fn planning_never_measures_inside_the_unmeasurable_region() {
 /// so none of them reaches any fit.
 #[test]
 fn offline_points_inside_the_unmeasurable_region_reach_no_fit() {
-    use rigcal::calibration::{calibrate, CalibrationOptions, Source};
-    use rigcal::division::{Bounds, DivisionSpace, Space};
-    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    use rigcal_calibration::{calibrate, CalibrationOptions, Source};
+    use rigcal_model::division::{Bounds, DivisionSpace, Space};
+    let sc = rigcal_sim::world::Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
     let rig = &sc.rig;
     let poses = random_poses(
         rig.chain.joints(),
@@ -405,8 +408,8 @@ fn learner_ceps_keep_what_a_region_sees_and_drop_what_it_cannot() {
         if node.id != "r" && node.is_measured() {
             let cep = node.cep.as_ref().unwrap();
             let (p_cep, p_learner) = (
-                rigcal::division::tree_expand(&ident.basis, n, cep),
-                rigcal::division::tree_expand(&ident.basis, n, &learner),
+                rigcal_model::division::tree_expand(&ident.basis, n, cep),
+                rigcal_model::division::tree_expand(&ident.basis, n, &learner),
             );
             let inside: Vec<&Observation> = report
                 .observations

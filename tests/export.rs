@@ -9,10 +9,10 @@
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::identification::ResidualStats;
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::model::{FitSummary, ModelBody, ModelFile, ParamEntry, Provenance};
-use rigcal::rig::Rig;
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::rig::Rig;
+use rigcal_model::identification::ResidualStats;
+use rigcal_model::model::{FitSummary, ModelBody, ModelFile, ParamEntry, Provenance};
 use std::collections::HashMap;
 use std::path::Path;
 use std::process::Command;
@@ -57,7 +57,7 @@ fn rig_and_model(dir: &Path, urdf: &Path, base: &str, tip: &str, seed: u64) -> (
     let mut e = ErrorParams::zeros(layout);
     let mut parameters = Vec::new();
     for (i, id) in layout.ids().iter().enumerate() {
-        let frame = matches!(id.transform, rigcal::kinematics::TransformId::Frame);
+        let frame = matches!(id.transform, rigcal_core::kinematics::TransformId::Frame);
         let v = match (frame, id.kind.is_angle()) {
             (true, true) => rng.random_range(-2.0..2.0),
             (true, false) => rng.random_range(-2000.0..2000.0),
@@ -237,15 +237,15 @@ fn round_trip(urdf_text: &str, base: &str, tip: &str, changed: usize) {
     let layout = rig.chain.layout();
     let first = &rig.chain.joints()[0];
     let kind = match first.kind {
-        rigcal::kinematics::JointKind::Revolute => rigcal::kinematics::ParamKind::Theta,
-        rigcal::kinematics::JointKind::Prismatic => rigcal::kinematics::ParamKind::D,
+        rigcal_core::kinematics::JointKind::Revolute => rigcal_core::kinematics::ParamKind::Theta,
+        rigcal_core::kinematics::JointKind::Prismatic => rigcal_core::kinematics::ParamKind::D,
     };
-    let id = rigcal::kinematics::ParamId {
-        transform: rigcal::kinematics::TransformId::Link(1),
+    let id = rigcal_core::kinematics::ParamId {
+        transform: rigcal_core::kinematics::TransformId::Link(1),
         kind,
     };
     let offset = kind.to_file_units(e.get(layout.index_of(id).unwrap()));
-    let key = if kind == rigcal::kinematics::ParamKind::Theta {
+    let key = if kind == rigcal_core::kinematics::ParamKind::Theta {
         "offset_deg"
     } else {
         "offset_mm"

@@ -9,15 +9,15 @@
 use nalgebra::{DMatrix, DVector, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::identification::outliers::{remove_outliers, OutlierSettings};
-use rigcal::identification::{
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::{FrameMode, Rig};
+use rigcal_model::identification::outliers::{remove_outliers, OutlierSettings};
+use rigcal_model::identification::{
     analyse, candidate_order, errors, fit, identify, random_poses, FitOptions, FitResult,
     IdentifyOptions, Level, Observation, Prior, ResidualStats,
 };
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::recording::Recording;
-use rigcal::rig::{FrameMode, Rig};
-use rigcal::world::{paper_geometric_errors, World};
+use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
 
 fn rig() -> Rig {
@@ -255,7 +255,7 @@ fn identify_with_outliers_equals_refitting_from_scratch() {
 /// The dense implementation the fast paths replaced (numerics unchanged).
 mod reference {
     use super::*;
-    use rigcal::identification::Identifiability;
+    use rigcal_model::identification::Identifiability;
 
     const RANK_TOL: f64 = 1e-9;
     const NO_EFFECT_TOL: f64 = 1e-9;

@@ -6,10 +6,10 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::identification::{analyse, candidate_order, random_poses};
-use rigcal::kinematics::Robot;
-use rigcal::rig::Rig;
-use rigcal::world::{paper_geometric_errors, World};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::rig::Rig;
+use rigcal_model::identification::{analyse, candidate_order, random_poses};
+use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
 use std::process::Command;
 
@@ -107,7 +107,7 @@ fn a_free_frame_is_fitted_from_any_orientation_and_held_out_error_is_at_the_nois
         }
     }
     // The saved full model predicts the tracker's points directly.
-    let loaded = rigcal::model::ModelFile::load(&dir.path().join("full.json")).unwrap();
+    let loaded = rigcal_model::model::ModelFile::load(&dir.path().join("full.json")).unwrap();
     let e = loaded.errors.params_at(&held_poses[0]);
     let p = loaded.rig.chain.position(&held_poses[0], &e);
     let truth_p = world.true_position(&held_poses[0]);
@@ -115,7 +115,7 @@ fn a_free_frame_is_fitted_from_any_orientation_and_held_out_error_is_at_the_nois
 }
 
 /// The tracker rig and a recording of it seen from far away, rotated.
-fn tracker_recording(dir: &Path) -> (Rig, rigcal::recording::Recording) {
+fn tracker_recording(dir: &Path) -> (Rig, rigcal_core::recording::Recording) {
     let rig_path = dir.join("tracker.toml");
     std::fs::write(&rig_path, tracker_rig_text()).unwrap();
     let rig = Rig::load(&rig_path).unwrap();
@@ -147,7 +147,7 @@ fn tracker_recording(dir: &Path) -> (Rig, rigcal::recording::Recording) {
 /// needs them): both predict the same points.
 #[test]
 fn started_and_absolute_frames_predict_the_same_points() {
-    use rigcal::identification::{fit_geometry, Level};
+    use rigcal_model::identification::{fit_geometry, Level};
     let dir = tempfile::tempdir().unwrap();
     let (rig, rec) = tracker_recording(dir.path());
     let obs = rec.observations();
@@ -157,12 +157,13 @@ fn started_and_absolute_frames_predict_the_same_points() {
     let relative = geometric.fit.params.clone();
     let (chain, absolute) = geometric.into_absolute();
     // Relative to the start the corrections are small; absolute, the frame is metres away.
-    let frame = |p: &rigcal::kinematics::ErrorParams, c: &rigcal::kinematics::SerialChain| {
+    let frame = |p: &rigcal_core::kinematics::ErrorParams,
+                 c: &rigcal_core::kinematics::SerialChain| {
         c.layout()
             .ids()
             .iter()
             .enumerate()
-            .filter(|(_, id)| id.transform == rigcal::kinematics::TransformId::Frame)
+            .filter(|(_, id)| id.transform == rigcal_core::kinematics::TransformId::Frame)
             .map(|(i, _)| p.get(i).abs())
             .fold(0.0, f64::max)
     };
@@ -177,8 +178,8 @@ fn started_and_absolute_frames_predict_the_same_points() {
 
 #[test]
 fn each_level_fits_its_own_parameters() {
-    use rigcal::identification::{identify, IdentifyOptions, Level};
-    use rigcal::kinematics::{ParamKind, TransformId};
+    use rigcal_core::kinematics::{ParamKind, TransformId};
+    use rigcal_model::identification::{identify, IdentifyOptions, Level};
     let dir = tempfile::tempdir().unwrap();
     let (rig, rec) = tracker_recording(dir.path());
     let layout = rig.chain.layout();

@@ -5,15 +5,15 @@
 
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::compensation::hybrid::{Approach, HybridOptions};
-use rigcal::identification::{identify, random_poses, IdentifyOptions, Level};
-use rigcal::kinematics::Robot;
-use rigcal::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
-use rigcal::model::LoadedModel;
-use rigcal::model::{ModelFile, Provenance};
-use rigcal::recording::Target;
-use rigcal::twin::hybrid::{compensated_errors, PathErrors};
-use rigcal::world::Scenario;
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::Target;
+use rigcal_model::identification::{identify, random_poses, IdentifyOptions, Level};
+use rigcal_model::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
+use rigcal_model::model::hybrid::{Approach, HybridOptions};
+use rigcal_model::model::LoadedModel;
+use rigcal_model::model::{ModelFile, Provenance};
+use rigcal_sim::twin::hybrid::{compensated_errors, PathErrors};
+use rigcal_sim::world::Scenario;
 use std::path::{Path, PathBuf};
 
 const NOISE_MM: f64 = 0.02;
@@ -109,7 +109,7 @@ fn model_with(sc: &Scenario, d: &Path, specs: &[EffectSpec]) -> (Models, Vec<Mod
 
 fn compare(
     m: &Models,
-    world: &rigcal::world::World,
+    world: &rigcal_sim::world::World,
     t: &[(u64, Target)],
     opts: &HybridOptions,
 ) -> [PathErrors; 2] {
@@ -279,7 +279,7 @@ fn older_model_files_without_effects_still_read() {
 
 #[test]
 fn compliance_without_masses_is_refused_with_what_to_add() {
-    let rig = rigcal::rig::Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
+    let rig = rigcal_core::rig::Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
     let e = EffectSpec::JointCompliance(1)
         .check(&rig.link_masses, 5)
         .unwrap_err()
@@ -327,7 +327,10 @@ fn cli_identify_with_effects_then_compensate_with_a_consistent_approach() {
     let poses = measurable_poses(&sc, 5, 8);
     std::fs::write(
         &targets,
-        rigcal::recording::commands_csv(sc.rig.chain.joints(), poses.iter().map(|q| q.as_slice())),
+        rigcal_core::recording::commands_csv(
+            sc.rig.chain.joints(),
+            poses.iter().map(|q| q.as_slice()),
+        ),
     )
     .unwrap();
     let cmds = d.join("commands.csv");

@@ -5,13 +5,13 @@
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::compensation::{compensate, CompensationError, CompensationOptions};
-use rigcal::identification::{
+use rigcal_core::kinematics::{ErrorParams, IkError, Robot};
+use rigcal_core::rig::Rig;
+use rigcal_model::compensation::{compensate, CompensationError, CompensationOptions};
+use rigcal_model::identification::{
     analyse, candidate_order, fit, random_poses, register, FitOptions, Observation,
 };
-use rigcal::kinematics::{ErrorParams, IkError, Robot};
-use rigcal::rig::Rig;
-use rigcal::world::{paper_geometric_errors, World};
+use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
 
 fn rig() -> Rig {
@@ -248,8 +248,8 @@ fn registration_recovers_a_table_frame() {
 
 #[test]
 fn a_recordings_table_points_register_and_the_registered_copy_is_in_world_coordinates() {
-    use rigcal::identification::registration::{register_recording, RegisterError};
-    use rigcal::recording::{Measurement, Recording, Status};
+    use rigcal_core::recording::{Measurement, Recording, Status};
+    use rigcal_model::identification::registration::{register_recording, RegisterError};
     let rig = rig();
     let chain = &rig.chain;
     let world_from_table = Isometry3::from_parts(
@@ -300,8 +300,8 @@ fn a_recordings_table_points_register_and_the_registered_copy_is_in_world_coordi
 
 #[test]
 fn targets_are_compensated_in_order_and_a_failure_names_its_line() {
-    use rigcal::compensation::compensate_targets;
-    use rigcal::recording::Target;
+    use rigcal_core::recording::Target;
+    use rigcal_model::compensation::compensate_targets;
     let rig = rig();
     let chain = &rig.chain;
     let zero = ErrorParams::zeros(chain.layout());

@@ -5,10 +5,10 @@ use approx::assert_relative_eq;
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::kinematics::{
+use rigcal_core::kinematics::{
     solve_position_ik, ErrorParams, IkError, IkOptions, Robot, SphericalFrame,
 };
-use rigcal::rig::Rig;
+use rigcal_core::rig::Rig;
 use std::path::Path;
 
 fn rv_m2() -> Rig {
@@ -52,7 +52,7 @@ fn forward_kinematics_matches_a_hand_derived_closed_form() {
 }
 
 fn random_params(n: usize, rng: &mut ChaCha8Rng) -> ErrorParams {
-    let mut e = ErrorParams::zeros(&rigcal::kinematics::ParamLayout::new(vec![], 0));
+    let mut e = ErrorParams::zeros(&rigcal_core::kinematics::ParamLayout::new(vec![], 0));
     *e.as_vector_mut() = nalgebra::DVector::from_fn(n, |_, _| rng.random_range(-0.01..0.01));
     e
 }

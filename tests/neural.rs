@@ -5,14 +5,14 @@
 use nalgebra::DMatrix;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::kinematics::{HeldChain, Robot};
-use rigcal::neural::network::{validation_split, Method};
-use rigcal::neural::{AngularSum, Network, NkModel, Sample, Scaler, Scheme, TrainConfig};
-use rigcal::reproduce::evaluation::{filtering_index, ErrorStats, PoseErrors};
-use rigcal::reproduce::robots::scara3::{self, Scara3Real};
-use rigcal::reproduce::robots::stewart::home_pose;
-use rigcal::reproduce::robots::{Scara2, Stewart, StewartErrors};
-use rigcal::reproduce::seed001::{table5, table7, ReproOptions, Table};
+use rigcal_core::kinematics::{HeldChain, Robot};
+use rigcal_model::neural::network::{validation_split, Method};
+use rigcal_model::neural::{AngularSum, Network, NkModel, Sample, Scaler, Scheme, TrainConfig};
+use rigcal_paper::reproduce::evaluation::{filtering_index, ErrorStats, PoseErrors};
+use rigcal_paper::reproduce::robots::scara3::{self, Scara3Real};
+use rigcal_paper::reproduce::robots::stewart::home_pose;
+use rigcal_paper::reproduce::robots::{Scara2, Stewart, StewartErrors};
+use rigcal_paper::reproduce::seed001::{table5, table7, ReproOptions, Table};
 
 fn data(n: usize, inputs: usize, outputs: usize, seed: u64) -> (DMatrix<f64>, DMatrix<f64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -327,9 +327,9 @@ fn scara3_rig_file_is_the_nominal_of_the_simulated_robot() {
 
 #[test]
 fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
-    use rigcal::identification::{random_poses, Observation};
-    use rigcal::model::{ModelBody, ModelFile, Provenance};
-    let sc = rigcal::world::Scenario::load(std::path::Path::new("sim/paper-sim.toml"), None)
+    use rigcal_model::identification::{random_poses, Observation};
+    use rigcal_model::model::{ModelBody, ModelFile, Provenance};
+    let sc = rigcal_sim::world::Scenario::load(std::path::Path::new("sim/paper-sim.toml"), None)
         .expect("scenario");
     let rig = &sc.rig;
     let world = sc.world();
@@ -355,7 +355,7 @@ fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
     };
     for scheme in [Scheme::Direct4, Scheme::Inverse4] {
         let (network, _) =
-            rigcal::neural::rig_model::train_on_rig(rig, &obs, scheme, &cfg).expect("train");
+            rigcal_model::neural::rig_model::train_on_rig(rig, &obs, scheme, &cfg).expect("train");
         let file = ModelFile::new(
             rig,
             Provenance::default(),
@@ -384,10 +384,10 @@ fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
         // Calibrated better than nominal on the training poses.
         let (mut before, mut after) = (0.0, 0.0);
         for o in &obs {
-            let e0 = rigcal::kinematics::ErrorParams::zeros(rig.chain.layout());
+            let e0 = rigcal_core::kinematics::ErrorParams::zeros(rig.chain.layout());
             before += (rig.chain.position(&o.q, &e0) - o.p).norm();
             // Both directions act as the real arm's forward model (inverse ones to first order).
-            let e = rigcal::kinematics::ErrorModel::params_at(models[0].1.as_ref(), &o.q);
+            let e = rigcal_core::kinematics::ErrorModel::params_at(models[0].1.as_ref(), &o.q);
             after += (rig.chain.position(&o.q, &e) - o.p).norm();
         }
         assert!(after < 0.5 * before, "{scheme:?}: {after} vs {before}");
@@ -396,7 +396,7 @@ fn neural_model_file_round_trip_and_compensation_on_the_rv_m2() {
 
 #[test]
 fn scara2_rig_file_is_the_closed_form_nominal() {
-    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/scara2.toml")).expect("rig");
+    let rig = rigcal_core::rig::Rig::load(std::path::Path::new("rigs/scara2.toml")).expect("rig");
     let kin = HeldChain::new(rig.chain.clone(), rig.held());
     let closed = Scara2::default();
     let mut rng = ChaCha8Rng::seed_from_u64(8);
@@ -417,7 +417,7 @@ fn scara2_rig_file_is_the_closed_form_nominal() {
 /// `pose_jacobian` of `robot` at `q` against central differences of its `forward`.
 fn assert_pose_jacobian_matches_differences(name: &str, robot: &dyn Robot, q: &[f64]) {
     let analytic = robot.pose_jacobian(q).expect("jacobian");
-    let numeric = rigcal::kinematics::numeric_pose_jacobian(&|q| robot.forward(q), q, &|i| {
+    let numeric = rigcal_core::kinematics::numeric_pose_jacobian(&|q| robot.forward(q), q, &|i| {
         robot.joint_is_angle(i)
     })
     .expect("differences");
@@ -434,7 +434,7 @@ fn assert_pose_jacobian_matches_differences(name: &str, robot: &dyn Robot, q: &[
 #[test]
 fn analytic_pose_jacobians_match_central_differences() {
     let mut rng = ChaCha8Rng::seed_from_u64(21);
-    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
+    let rig = rigcal_core::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
     let held = HeldChain::new(rig.chain.clone(), rig.held());
     let (_, scara3) = scara3::nominal().expect("rig");
     for _ in 0..10 {
@@ -456,7 +456,7 @@ fn the_paper_robots_measured_point_is_their_pose_and_they_carry_no_error_paramet
     for _ in 0..10 {
         let q = [rng.random_range(-0.5..0.5), rng.random_range(1.3..2.7)];
         let s = scara.forward(&q).expect("fk");
-        let e = rigcal::kinematics::ErrorParams::zeros(scara.layout());
+        let e = rigcal_core::kinematics::ErrorParams::zeros(scara.layout());
         let (p, m) = scara.position_and_param_jacobian(&q, &e);
         assert_eq!((p.x, p.y, p.z), (s[0], s[1], 0.0));
         assert_eq!(m.shape(), (3, 0));
@@ -469,7 +469,7 @@ fn the_paper_robots_measured_point_is_their_pose_and_they_carry_no_error_paramet
             .inverse(&Stewart::random_pose(&mut rng), &[])
             .expect("ik");
         let s = stewart.forward(&legs).expect("fk");
-        let e = rigcal::kinematics::ErrorParams::zeros(stewart.layout());
+        let e = rigcal_core::kinematics::ErrorParams::zeros(stewart.layout());
         let p = stewart.position(&legs, &e);
         assert_eq!((p.x, p.y, p.z), (s[0], s[1], s[2]));
         let j = stewart.pose_jacobian(&legs).expect("jacobian");
@@ -504,7 +504,7 @@ fn stewart_round_trip_through_the_robot_trait() {
 
 #[test]
 fn serial_chains_invert_their_pose_and_keep_held_joints() {
-    let rig = rigcal::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
+    let rig = rigcal_core::rig::Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
     let held = HeldChain::new(rig.chain.clone(), rig.held());
     assert_eq!(held.dof(), 3);
     let mut rng = ChaCha8Rng::seed_from_u64(24);
@@ -537,29 +537,33 @@ fn serial_chains_invert_their_pose_and_keep_held_joints() {
 struct NewtonScara(Scara2);
 
 impl Robot for NewtonScara {
-    fn joints(&self) -> &[rigcal::kinematics::JointSpec] {
+    fn joints(&self) -> &[rigcal_core::kinematics::JointSpec] {
         self.0.joints()
     }
     fn pose_len(&self) -> usize {
         2
     }
-    fn forward(&self, q: &[f64]) -> Result<Vec<f64>, rigcal::kinematics::KinematicsError> {
+    fn forward(&self, q: &[f64]) -> Result<Vec<f64>, rigcal_core::kinematics::KinematicsError> {
         self.0.forward(q)
     }
-    fn layout(&self) -> &rigcal::kinematics::ParamLayout {
+    fn layout(&self) -> &rigcal_core::kinematics::ParamLayout {
         self.0.layout()
     }
-    fn position(&self, q: &[f64], e: &rigcal::kinematics::ErrorParams) -> nalgebra::Vector3<f64> {
+    fn position(
+        &self,
+        q: &[f64],
+        e: &rigcal_core::kinematics::ErrorParams,
+    ) -> nalgebra::Vector3<f64> {
         self.0.position(q, e)
     }
     fn position_and_param_jacobian(
         &self,
         q: &[f64],
-        e: &rigcal::kinematics::ErrorParams,
+        e: &rigcal_core::kinematics::ErrorParams,
     ) -> (nalgebra::Vector3<f64>, DMatrix<f64>) {
         self.0.position_and_param_jacobian(q, e)
     }
-    fn joint_jacobian(&self, q: &[f64], e: &rigcal::kinematics::ErrorParams) -> DMatrix<f64> {
+    fn joint_jacobian(&self, q: &[f64], e: &rigcal_core::kinematics::ErrorParams) -> DMatrix<f64> {
         self.0.joint_jacobian(q, e)
     }
 }

@@ -1,4 +1,4 @@
-//! Outliers in `rigcal identify` and [`rigcal::identification::identify`]: gross errors planted
+//! Outliers in `rigcal identify` and [`rigcal_model::identification::identify`]: gross errors planted
 //! in a recording (a marker seen through a reflection) are found with the right seq and file
 //! line, removed, and the fit then equals the fit of the recording with those rows deleted; on
 //! clean recordings nothing is flagged; too many outliers remove nothing and say so; a clean
@@ -11,14 +11,14 @@ mod common;
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::identification::{
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::Rig;
+use rigcal_model::identification::{
     analyse, candidate_order, identify, random_poses, HeldOut, IdentifyError, IdentifyOptions,
     Level,
 };
-use rigcal::kinematics::Robot;
-use rigcal::recording::Recording;
-use rigcal::rig::Rig;
-use rigcal::world::{paper_geometric_errors, World};
+use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
 use std::process::Command;
 
@@ -314,7 +314,8 @@ fn a_clean_recording_with_structured_residuals_keeps_every_row() {
     }
     // The realistic table rig (compliance, backlash, gear error, drift, table errors,
     // quantisation) keeps every row too.
-    let sc = rigcal::world::Scenario::load(Path::new("sim/rig-realistic.toml"), None).expect("sc");
+    let sc =
+        rigcal_sim::world::Scenario::load(Path::new("sim/rig-realistic.toml"), None).expect("sc");
     let rig = &sc.rig;
     let mut rng = ChaCha8Rng::seed_from_u64(8);
     let mut poses = Vec::new();
@@ -392,8 +393,8 @@ fn gross_rows_in_a_structured_recording_are_the_rows_the_structure_judgement_fin
     // noise, so the geometric residual is structured. Rows 40 and 200 moved by 3 and 2 mm are
     // far beyond every other row: the geometric judgement removes them alone (no diagnosis),
     // and they are the rows the diagnosis's structure judgement finds, with the same sizes.
-    use rigcal::identification::outliers::OutlierSettings;
-    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-sim-noise.toml"), None)
+    use rigcal_model::identification::outliers::OutlierSettings;
+    let sc = rigcal_sim::world::Scenario::load(Path::new("sim/paper-sim-noise.toml"), None)
         .expect("scenario");
     let rig = &sc.rig;
     let mut rng = ChaCha8Rng::seed_from_u64(21);
@@ -412,16 +413,17 @@ fn gross_rows_in_a_structured_recording_are_the_rows_the_structure_judgement_fin
     fast.sort_by_key(|f| f.0);
     assert_eq!(fast.iter().map(|f| f.0).collect::<Vec<_>>(), vec![41, 201]);
     assert_eq!(id.fit.after.n, 298);
-    let mut judged: Vec<(u64, f64)> = rigcal::diagnosis::outliers::outliers_against_structure(
-        rig,
-        &rec,
-        &OutlierSettings::default(),
-    )
-    .expect("the diagnosis models the recording")
-    .expect("two rows are not too many")
-    .iter()
-    .map(|o| (o.seq, o.size_mm))
-    .collect();
+    let mut judged: Vec<(u64, f64)> =
+        rigcal_model::diagnosis::outliers::outliers_against_structure(
+            rig,
+            &rec,
+            &OutlierSettings::default(),
+        )
+        .expect("the diagnosis models the recording")
+        .expect("two rows are not too many")
+        .iter()
+        .map(|o| (o.seq, o.size_mm))
+        .collect();
     judged.sort_by_key(|f| f.0);
     assert_eq!(
         judged.iter().map(|f| f.0).collect::<Vec<_>>(),

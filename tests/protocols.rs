@@ -1,20 +1,22 @@
-//! Literal-byte, error and property tests for every codec in `rigcal::protocols`.
+//! Literal-byte, error and property tests for every codec in `rigcal_devices::protocols`.
 
 use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
 
-use rigcal::protocols::can::{CanFrame, CanFrameError, CanId};
-use rigcal::protocols::canopen::{
+use rigcal_devices::protocols::can::{CanFrame, CanFrameError, CanId};
+use rigcal_devices::protocols::canopen::{
     next_controlword_towards_enabled, od, CanOpenError, CanOpenMessage, Controlword, DriveState,
     EmcyErrorCode, Emergency, Heartbeat, Nmt, NmtCommand, NmtState, NodeId, PdoDirection,
     SdoAbortCode, SdoData, SdoRequest, SdoResponse, Statusword,
 };
-use rigcal::protocols::movemaster::{
+use rigcal_devices::protocols::movemaster::{
     quantise_increment, quantise_joint_move, Acceleration, Command, Decimal, ErrorStatus,
     JointNumber, LineFramer, MovemasterError, Resolution, SpeedLevel, WhereReply,
 };
-use rigcal::protocols::penmount::{checksum, Axis, PenMountDecoder, PenMountError, PenMountPacket};
-use rigcal::protocols::slcan::{Bitrate, SlcanDecoder, SlcanError, SlcanMessage};
+use rigcal_devices::protocols::penmount::{
+    checksum, Axis, PenMountDecoder, PenMountError, PenMountPacket,
+};
+use rigcal_devices::protocols::slcan::{Bitrate, SlcanDecoder, SlcanError, SlcanMessage};
 
 fn node(n: u8) -> NodeId {
     NodeId::new(n).unwrap()

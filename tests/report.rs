@@ -6,10 +6,10 @@
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::identification::random_poses;
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::rig::Rig;
-use rigcal::world::World;
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::rig::Rig;
+use rigcal_model::identification::random_poses;
+use rigcal_sim::world::World;
 use std::path::Path;
 use std::process::Command;
 

@@ -5,13 +5,14 @@
 use std::path::Path;
 use std::process::Command;
 
-use rigcal::devices::{open_rig, SimClock};
-use rigcal::rig::Rig;
-use rigcal::session::{
+use rigcal_core::rig::Rig;
+use rigcal_devices::devices::SimClock;
+use rigcal_devices::session::{
     estimate, plan, plan_variant, registration_points, run_session, saving_pct, ContactProcedure,
     ContactSettings, Ordering, PlanOptions, Progress, RigSpeeds, SessionOptions, COMPARED,
 };
-use rigcal::world::Scenario;
+use rigcal_sim::emulation::open_rig;
+use rigcal_sim::world::Scenario;
 
 const SCENARIO: &str = "sim/rig-realistic.toml";
 

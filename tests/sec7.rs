@@ -2,10 +2,10 @@
 //! points): the ordering of the methods on the rig's own measurements, `MP` against `MJ`, and
 //! the region batches measured z-ascending on the division session's recording.
 
-use rigcal::calibration::sec7::{self, Sec7Files, Sec7Options, Sec7Report};
-use rigcal::recording::{Recording, Status};
-use rigcal::rig::controller::CommandPath;
-use rigcal::rig::Rig;
+use rigcal_core::recording::{Recording, Status};
+use rigcal_core::rig::Rig;
+use rigcal_devices::devices::controller::CommandPath;
+use rigcal_paper::sec7::{self, Sec7Files, Sec7Options, Sec7Report};
 use std::path::Path;
 
 fn reduced_run(out: &Path) -> Sec7Report {
@@ -93,13 +93,15 @@ fn batches_ascend_in_z(files: &Sec7Files<'_>) {
     let rig = Rig::load(files.rig).unwrap();
     let rec = Recording::read(
         &files.division_dir(),
-        rigcal::kinematics::Robot::joints(&rig.chain),
+        rigcal_core::kinematics::Robot::joints(&rig.chain),
     )
     .unwrap();
     let mut batches: std::collections::BTreeMap<String, Vec<f64>> = Default::default();
     for m in &rec.rows {
         let region = m.region.clone().unwrap_or_default();
-        if rigcal::session::is_division_region(&region) && region != "div" && m.status == Status::Ok
+        if rigcal_devices::session::is_division_region(&region)
+            && region != "div"
+            && m.status == Status::Ok
         {
             batches.entry(region).or_default().push(m.table.unwrap().z);
         }
@@ -161,7 +163,8 @@ fn calibrate_through_a_session_moves_on_the_rigs_command_path() {
             String::from_utf8_lossy(&out.stderr)
         );
         let rig = Rig::load(&rig_file).unwrap();
-        let rec = Recording::read(&dir, rigcal::kinematics::Robot::joints(&rig.chain)).unwrap();
+        let rec =
+            Recording::read(&dir, rigcal_core::kinematics::Robot::joints(&rig.chain)).unwrap();
         let moved: Vec<&[f64]> = rec.rows.iter().map(|m| m.q.as_slice()).collect();
         let on_grid = |v: f64| {
             let tenths = v.to_degrees() * 10.0;

@@ -9,20 +9,20 @@ use std::time::Duration;
 
 use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
-use rigcal::devices::contact::{approach_speed, measure_contact};
-use rigcal::devices::emulators::table::InjectedFault;
-use rigcal::devices::{
-    open_devices, open_rig, Arm, ArmPose, ArmStatus, Backend, DeviceError, InstrumentDevices,
-    OpenedRig, RigDevices, SimClock, SimSetup, Table,
+use rigcal_core::kinematics::{JointSpec, Robot};
+use rigcal_core::recording::{Recording, Status};
+use rigcal_core::rig::{Instrument, Rig};
+use rigcal_devices::devices::contact::{approach_speed, measure_contact};
+use rigcal_devices::devices::emulators::table::InjectedFault;
+use rigcal_devices::devices::{
+    open_devices, Arm, ArmPose, ArmStatus, Backend, DeviceError, InstrumentDevices, OpenedRig,
+    RigDevices, SimClock, Table,
 };
-use rigcal::kinematics::{JointSpec, Robot};
-use rigcal::recording::{Recording, Status};
-use rigcal::rig::{Instrument, Rig};
-use rigcal::session::{
+use rigcal_devices::session::{
     estimate, plan, registration_points, run_session, z_window_mm, ContactSettings, Ordering,
     PlanOptions, PlannedPoint, Progress, RigSpeeds, SessionOptions,
 };
-use rigcal::world::Scenario;
+use rigcal_sim::world::Scenario;
 
 const T: Duration = Duration::from_secs(30);
 const SCENARIO: &str = "sim/rig-realistic.toml";
@@ -53,7 +53,7 @@ fn a_contact_through_drivers_and_emulators_agrees_with_the_world() {
     let Instrument::TablePanel(tp) = &rig.instrument else {
         panic!()
     };
-    let (setup, world) = SimSetup::from_scenario(&sc);
+    let (setup, world) = rigcal_sim::emulation::setup_from_scenario(&sc);
     let mut d = open_devices(&rig, Backend::Simulated(setup)).unwrap();
     let nest = d.arm.home(T).unwrap();
     let mut reference = sc.world();
@@ -101,7 +101,7 @@ fn a_contact_through_drivers_and_emulators_agrees_with_the_world() {
         // And the point is not just the nominal one: the world's errors show.
         let nominal = rig.chain.position(
             &q,
-            &rigcal::kinematics::ErrorParams::zeros(rig.chain.layout()),
+            &rigcal_core::kinematics::ErrorParams::zeros(rig.chain.layout()),
         ) - tp.table_to_world_mm;
         assert!((nominal - nalgebra::Vector3::from(got)).norm() > 0.05);
         checked += 1;
@@ -110,7 +110,7 @@ fn a_contact_through_drivers_and_emulators_agrees_with_the_world() {
 }
 
 fn sim_devices(sc: &Scenario) -> OpenedRig {
-    open_rig(&sc.rig, Some(sc), SimClock::Virtual).unwrap()
+    rigcal_sim::emulation::open_rig(&sc.rig, Some(sc), SimClock::Virtual).unwrap()
 }
 
 fn options(dir: &Path) -> SessionOptions {
@@ -125,7 +125,7 @@ fn read(dir: &Path, rig: &Rig) -> Recording {
 }
 
 /// Rows for the planned points (not registration), in order.
-fn point_rows(rec: &Recording) -> Vec<&rigcal::recording::Measurement> {
+fn point_rows(rec: &Recording) -> Vec<&rigcal_core::recording::Measurement> {
     rec.rows
         .iter()
         .filter(|m| m.region.as_deref() != Some("reg") && m.status != Status::Via)
@@ -592,7 +592,7 @@ fn wrap(
         sent: Arc::clone(&log.arm),
     });
     if let InstrumentDevices::TablePanel { table, .. } = &mut d.instrument {
-        let inner = std::mem::replace(table, Box::new(rigcal::devices::MockTable::new()));
+        let inner = std::mem::replace(table, Box::new(rigcal_devices::devices::MockTable::new()));
         *table = Box::new(FaultyTable {
             inner,
             moves: 0,
@@ -658,7 +658,7 @@ fn injected_faults_leave_a_complete_recording_with_every_skip_explained() {
     p2.lock().unwrap().garbage_before_next = vec![0xFF, 0x00, 0x13];
     // Three touches in a row missed: one point is skipped after its last attempt.
     if let InstrumentDevices::TablePanel { panel, .. } = &mut d.instrument {
-        let inner = std::mem::replace(panel, Box::new(rigcal::devices::MockPanel::new()));
+        let inner = std::mem::replace(panel, Box::new(rigcal_devices::devices::MockPanel::new()));
         *panel = Box::new(MissingPanel {
             inner,
             calls: 0,
@@ -713,13 +713,13 @@ fn injected_faults_leave_a_complete_recording_with_every_skip_explained() {
 
 /// A panel that misses the touches of the `miss` range of approaches (counted by `clear`).
 struct MissingPanel {
-    inner: Box<dyn rigcal::devices::Panel>,
+    inner: Box<dyn rigcal_devices::devices::Panel>,
     calls: usize,
     miss: std::ops::Range<usize>,
-    faults: rigcal::devices::emulators::panel::PanelFaultHandle,
+    faults: rigcal_devices::devices::emulators::panel::PanelFaultHandle,
 }
 
-impl rigcal::devices::Panel for MissingPanel {
+impl rigcal_devices::devices::Panel for MissingPanel {
     fn clear(&mut self) -> Result<(), DeviceError> {
         self.calls += 1;
         if self.miss.contains(&self.calls) {
@@ -727,10 +727,10 @@ impl rigcal::devices::Panel for MissingPanel {
         }
         self.inner.clear()
     }
-    fn wait_touch(&mut self, t: Duration) -> Result<rigcal::devices::Touch, DeviceError> {
+    fn wait_touch(&mut self, t: Duration) -> Result<rigcal_devices::devices::Touch, DeviceError> {
         self.inner.wait_touch(t)
     }
-    fn stats(&self) -> rigcal::devices::PanelStats {
+    fn stats(&self) -> rigcal_devices::devices::PanelStats {
         self.inner.stats()
     }
     fn latency(&self) -> Duration {
@@ -768,7 +768,7 @@ proptest! {
         for q in log.arm.lock().unwrap().iter() {
             prop_assert!(in_limits(rig.chain.joints(), q), "{q:?}");
         }
-        let retract = rig.devices.clone().unwrap_or_default().table.pass_retract_mm;
+        let retract = rigcal_devices::config::DevicesConfig::read(&rig).table.pass_retract_mm;
         let mut top: Option<f64> = None;
         for c in log.table.lock().unwrap().iter() {
             match c {
@@ -843,7 +843,7 @@ fn a_dry_run_on_the_ideal_rig_reads_the_true_tip_at_every_commanded_pose() {
     // The plan's last columns are the nominal tip, not a table position.
     let plan_text = {
         let p = dir.path().join("plan.csv");
-        rigcal::session::write_plan(&p, &rig, &pts).unwrap();
+        rigcal_devices::session::write_plan(&p, &rig, &pts).unwrap();
         std::fs::read_to_string(p).unwrap()
     };
     assert!(plan_text
@@ -895,7 +895,7 @@ fn calibrate_through_a_session_measures_where_the_division_asks() {
         .filter(|m| {
             m.region
                 .as_deref()
-                .is_some_and(rigcal::session::is_division_region)
+                .is_some_and(rigcal_devices::session::is_division_region)
                 && m.status != Status::Via
         })
         .count();
@@ -926,7 +926,7 @@ struct FaultOnTravel {
     last_xy: Option<[f64; 2]>,
     travels: usize,
     nth: usize,
-    faults: rigcal::devices::emulators::table::TableFaultHandle,
+    faults: rigcal_devices::devices::emulators::table::TableFaultHandle,
 }
 
 impl Table for FaultOnTravel {
@@ -990,7 +990,7 @@ fn a_table_fault_during_a_simultaneous_move_is_cleared_and_reported() {
     } = sim_devices(&sc);
     let faults = d.sim.clone().unwrap().table.unwrap();
     if let InstrumentDevices::TablePanel { table, .. } = &mut d.instrument {
-        let inner = std::mem::replace(table, Box::new(rigcal::devices::MockTable::new()));
+        let inner = std::mem::replace(table, Box::new(rigcal_devices::devices::MockTable::new()));
         *table = Box::new(FaultOnTravel {
             inner,
             last_xy: None,
@@ -1033,14 +1033,14 @@ fn a_table_fault_during_a_simultaneous_move_is_cleared_and_reported() {
 /// A panel that, at its `at`-th contact (counted by `clear`), runs `then` (e.g. silences a
 /// drive) and misses the touch, so only a fault can end that approach before its timeout.
 struct SilencingPanel {
-    inner: Box<dyn rigcal::devices::Panel>,
+    inner: Box<dyn rigcal_devices::devices::Panel>,
     calls: usize,
     at: usize,
     then: Box<dyn Fn() + Send>,
-    faults: rigcal::devices::emulators::panel::PanelFaultHandle,
+    faults: rigcal_devices::devices::emulators::panel::PanelFaultHandle,
 }
 
-impl rigcal::devices::Panel for SilencingPanel {
+impl rigcal_devices::devices::Panel for SilencingPanel {
     fn clear(&mut self) -> Result<(), DeviceError> {
         self.calls += 1;
         if self.calls == self.at {
@@ -1049,10 +1049,10 @@ impl rigcal::devices::Panel for SilencingPanel {
         }
         self.inner.clear()
     }
-    fn wait_touch(&mut self, t: Duration) -> Result<rigcal::devices::Touch, DeviceError> {
+    fn wait_touch(&mut self, t: Duration) -> Result<rigcal_devices::devices::Touch, DeviceError> {
         self.inner.wait_touch(t)
     }
-    fn stats(&self) -> rigcal::devices::PanelStats {
+    fn stats(&self) -> rigcal_devices::devices::PanelStats {
         self.inner.stats()
     }
     fn latency(&self) -> Duration {
@@ -1072,7 +1072,7 @@ fn a_lost_heartbeat_aborts_the_approach_and_stops_the_session() {
     let sim = devices.sim.clone().unwrap();
     let table_faults = sim.table.clone().unwrap();
     if let InstrumentDevices::TablePanel { panel, .. } = &mut devices.instrument {
-        let inner = std::mem::replace(panel, Box::new(rigcal::devices::MockPanel::new()));
+        let inner = std::mem::replace(panel, Box::new(rigcal_devices::devices::MockPanel::new()));
         *panel = Box::new(SilencingPanel {
             inner,
             calls: 0,
@@ -1086,7 +1086,7 @@ fn a_lost_heartbeat_aborts_the_approach_and_stops_the_session() {
     o.registration_points = 0;
     let e = run_session(&rig, OpenedRig { devices, hook }, &pts, o, &Progress::Quiet).unwrap_err();
     match &e {
-        rigcal::session::SessionError::Device {
+        rigcal_devices::session::SessionError::Device {
             source: DeviceError::HeartbeatLost { axis: 'y', .. },
             stage,
         } => assert!(stage.contains("measuring"), "{stage}"),
@@ -1115,8 +1115,8 @@ fn a_lost_heartbeat_aborts_the_approach_and_stops_the_session() {
 /// once, with the session's error as the cause; nothing more is asked of the rig.
 #[test]
 fn a_fatal_rig_fault_stops_the_division_at_once() {
-    use rigcal::division::{divide, DivisionError, DivisionOptions, Measurer, Mode};
-    use rigcal::identification::{analyse, candidate_order, random_poses, Observation};
+    use rigcal_model::division::{divide, DivisionError, DivisionOptions, Measurer, Mode};
+    use rigcal_model::identification::{analyse, candidate_order, random_poses, Observation};
     let sc = Scenario::load(Path::new("sim/paper-sim.toml"), None).unwrap();
     let rig = sc.rig.clone();
     let OpenedRig { devices, hook } = sim_devices(&sc);
@@ -1130,11 +1130,14 @@ fn a_fatal_rig_fault_stops_the_division_at_once() {
         vec![],
     );
     let dir = tempfile::tempdir().unwrap();
-    let mut session =
-        rigcal::session::Session::open(&rig, OpenedRig { devices, hook }, options(dir.path()))
-            .unwrap();
+    let mut session = rigcal_devices::session::Session::open(
+        &rig,
+        OpenedRig { devices, hook },
+        options(dir.path()),
+    )
+    .unwrap();
     struct Counting<'a, 's, 'r> {
-        inner: &'a mut rigcal::session::SessionMeasurer<'s, 'r>,
+        inner: &'a mut rigcal_devices::session::SessionMeasurer<'s, 'r>,
         calls: usize,
         failed_at: Option<usize>,
     }
@@ -1142,7 +1145,7 @@ fn a_fatal_rig_fault_stops_the_division_at_once() {
         fn measure(
             &mut self,
             q: &[f64],
-        ) -> Result<Option<Observation>, rigcal::division::MeasureError> {
+        ) -> Result<Option<Observation>, rigcal_model::division::MeasureError> {
             assert!(
                 self.failed_at.is_none(),
                 "asked again after the session stopped"
@@ -1155,7 +1158,7 @@ fn a_fatal_rig_fault_stops_the_division_at_once() {
             r
         }
     }
-    let mut inner = rigcal::session::SessionMeasurer::new(&mut session, &rig);
+    let mut inner = rigcal_devices::session::SessionMeasurer::new(&mut session, &rig);
     let mut m = Counting {
         inner: &mut inner,
         calls: 0,
@@ -1177,8 +1180,11 @@ fn a_fatal_rig_fault_stops_the_division_at_once() {
     let DivisionError::Measurement(me) = &e else {
         panic!("{e}")
     };
-    match me.source.downcast_ref::<rigcal::session::SessionError>() {
-        Some(rigcal::session::SessionError::Device {
+    match me
+        .source
+        .downcast_ref::<rigcal_devices::session::SessionError>()
+    {
+        Some(rigcal_devices::session::SessionError::Device {
             source: DeviceError::ArmErrorMode { code: 1, .. },
             ..
         }) => {}
@@ -1233,7 +1239,7 @@ proptest! {
     ) {
         let rig = scenario().rig;
         let window = z_window_mm(&rig);
-        let retract = rig.devices.clone().unwrap_or_default().table.pass_retract_mm;
+        let retract = rigcal_devices::config::DevicesConfig::read(&rig).table.pass_retract_mm;
         let c = ContactSettings::of(&rig);
         // The window leaves the pass rule its margins (see `z_window_mm`).
         prop_assert!(window > 0.0 && window + 2.0 * c.margin_mm + c.clearance_mm <= retract);

@@ -7,13 +7,13 @@ use std::collections::VecDeque;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use rigcal::devices::clock::VirtualClock;
-use rigcal::devices::table_canopen::CanOpenTable;
-use rigcal::devices::Table;
-use rigcal::protocols::can::CanFrame;
-use rigcal::protocols::canopen::{SdoData, SdoRequest, SdoResponse};
-use rigcal::rig::Rig;
-use rigcal::transports::{CanBus, TransportError};
+use rigcal_core::rig::Rig;
+use rigcal_devices::devices::clock::VirtualClock;
+use rigcal_devices::devices::table_canopen::CanOpenTable;
+use rigcal_devices::devices::Table;
+use rigcal_devices::protocols::can::CanFrame;
+use rigcal_devices::protocols::canopen::{SdoData, SdoRequest, SdoResponse};
+use rigcal_devices::transports::{CanBus, TransportError};
 
 /// Answers SDO uploads of 0x1000 with `device_type(node)`, acknowledges every download, and
 /// keeps the requests it saw.
@@ -57,7 +57,9 @@ impl CanBus for ScriptedBus {
 
 fn enable_with(device_type: fn(u8) -> u32) -> (Result<(), String>, Vec<(u8, SdoRequest)>) {
     let rig = Rig::load(std::path::Path::new("rigs/rv-m2.toml")).expect("rig");
-    let cfg = rig.devices.expect("[devices]").table;
+    let cfg = rigcal_devices::config::DevicesConfig::read_opt(&rig)
+        .expect("[devices]")
+        .table;
     let seen = Arc::new(Mutex::new(Vec::new()));
     let bus = ScriptedBus {
         device_type,

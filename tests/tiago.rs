@@ -7,13 +7,13 @@
 //! them all); FIGAROH's in-sample figures on the same files are ≈ 11.0 / 11.2 mm (3-D) for
 //! 0701 / 0702 and 7.9 mm per coordinate for 0805 (data README).
 
-use rigcal::diagnosis::{diagnose, Options};
-use rigcal::identification::sessions::{
+use rigcal_core::recording::import::{import_csv, ImportSpec};
+use rigcal_core::rig::Rig;
+use rigcal_model::diagnosis::sessions::{
     clean_session, fit_sessions, heldout_sessions, physics_heldout, without_rows, PerSession,
 };
-use rigcal::identification::{HeldOut, Level};
-use rigcal::recording::import::{import_csv, ImportSpec};
-use rigcal::rig::Rig;
+use rigcal_model::diagnosis::{diagnose, Options};
+use rigcal_model::identification::{HeldOut, Level};
 use std::path::Path;
 
 const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/tiago-pro");

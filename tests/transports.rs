@@ -9,9 +9,9 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread;
 use std::time::{Duration, Instant};
 
-use rigcal::protocols::can::CanFrame;
-use rigcal::protocols::slcan::{Bitrate, SlcanDecoder, SlcanMessage};
-use rigcal::transports::{
+use rigcal_devices::protocols::can::CanFrame;
+use rigcal_devices::protocols::slcan::{Bitrate, SlcanDecoder, SlcanMessage};
+use rigcal_devices::transports::{
     ByteTransport, CanBus, FlowControl, Parity, PipeTransport, SerialSettings, SerialTransport,
     SimBus, SlcanBus, SlcanBusConfig, TransportError,
 };
@@ -343,7 +343,10 @@ fn slcan_bus_bel_reply_is_protocol_error() {
         TransportError::Protocol { detail } => assert!(detail.contains("S6"), "{detail}"),
         other => panic!("expected protocol error, got {other:?}"),
     }
-    assert_eq!(err.kind(), rigcal::transports::TransportErrorKind::Protocol);
+    assert_eq!(
+        err.kind(),
+        rigcal_devices::transports::TransportErrorKind::Protocol
+    );
 }
 
 #[test]
@@ -414,7 +417,7 @@ fn traits_are_object_safe_and_boxed_transports_work() {
 #[cfg(target_os = "linux")]
 #[test]
 fn socketcan_open_missing_interface_is_typed_error() {
-    match rigcal::transports::SocketCanBus::open("can0") {
+    match rigcal_devices::transports::SocketCanBus::open("can0") {
         Err(TransportError::Open { target, .. }) => assert_eq!(target, "can0"),
         Err(other) => panic!("unexpected error {other:?}"),
         // A machine with a real can0 is fine too.
@@ -425,8 +428,8 @@ fn socketcan_open_missing_interface_is_typed_error() {
 #[cfg(target_os = "linux")]
 #[test]
 fn socketcan_on_tokio_behind_the_bridge_reports_a_missing_interface() {
-    let r = rigcal::transports::BridgedCanBus::spawn("can0", || {
-        rigcal::transports::AsyncSocketCan::open("can0")
+    let r = rigcal_devices::transports::BridgedCanBus::spawn("can0", || {
+        rigcal_devices::transports::AsyncSocketCan::open("can0")
     });
     match r {
         Err(TransportError::Open { target, .. }) => assert_eq!(target, "can0"),
@@ -444,7 +447,7 @@ struct EchoPlusOne {
     tx: tokio::sync::mpsc::UnboundedSender<CanFrame>,
 }
 
-impl rigcal::transports::AsyncFrames for EchoPlusOne {
+impl rigcal_devices::transports::AsyncFrames for EchoPlusOne {
     async fn read(&self) -> Result<CanFrame, TransportError> {
         self.rx
             .lock()
@@ -455,20 +458,23 @@ impl rigcal::transports::AsyncFrames for EchoPlusOne {
     }
     async fn write(&self, frame: CanFrame) -> Result<(), TransportError> {
         let id = match frame.id() {
-            rigcal::protocols::can::CanId::Standard(id) => id + 1,
-            rigcal::protocols::can::CanId::Extended(id) => id as u16 + 1,
+            rigcal_devices::protocols::can::CanId::Standard(id) => id + 1,
+            rigcal_devices::protocols::can::CanId::Extended(id) => id as u16 + 1,
         };
-        let reply = CanFrame::new(rigcal::protocols::can::CanId::Standard(id), frame.data())
-            .map_err(|e| TransportError::Protocol {
-                detail: e.to_string(),
-            })?;
+        let reply = CanFrame::new(
+            rigcal_devices::protocols::can::CanId::Standard(id),
+            frame.data(),
+        )
+        .map_err(|e| TransportError::Protocol {
+            detail: e.to_string(),
+        })?;
         self.tx.send(reply).map_err(|_| TransportError::Closed)
     }
 }
 
 #[test]
 fn the_tokio_bridge_carries_frames_both_ways_and_times_out() {
-    let mut bus = rigcal::transports::BridgedCanBus::spawn("mem", || {
+    let mut bus = rigcal_devices::transports::BridgedCanBus::spawn("mem", || {
         let (tx, rx) = tokio::sync::mpsc::unbounded_channel();
         Ok(EchoPlusOne {
             rx: tokio::sync::Mutex::new(rx),
@@ -483,10 +489,17 @@ fn the_tokio_bridge_carries_frames_both_ways_and_times_out() {
     }
     assert!(t0.elapsed() >= Duration::from_millis(30));
     for k in 0..5u8 {
-        let f = CanFrame::new(rigcal::protocols::can::CanId::Standard(0x600), &[k, 2, 3]).unwrap();
+        let f = CanFrame::new(
+            rigcal_devices::protocols::can::CanId::Standard(0x600),
+            &[k, 2, 3],
+        )
+        .unwrap();
         bus.send(&f).unwrap();
         let r = bus.recv(Duration::from_secs(1)).unwrap();
-        assert_eq!(r.id(), rigcal::protocols::can::CanId::Standard(0x601));
+        assert_eq!(
+            r.id(),
+            rigcal_devices::protocols::can::CanId::Standard(0x601)
+        );
         assert_eq!(r.data(), &[k, 2, 3]);
     }
     drop(bus);

@@ -5,11 +5,11 @@
 
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
-use rigcal::identification::random_poses;
-use rigcal::kinematics::Robot;
-use rigcal::recording::Recording;
-use rigcal::twin::{learn, Twin, TwinOptions};
-use rigcal::world::Scenario;
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::Recording;
+use rigcal_model::identification::random_poses;
+use rigcal_sim::twin::{learn, Twin, TwinOptions};
+use rigcal_sim::world::Scenario;
 use std::path::{Path, PathBuf};
 
 const NOISE_MM: f64 = 0.02;
@@ -178,7 +178,7 @@ fn flags_what_is_not_in_the_library_claims_no_library_effect_and_simulates_the_d
         "{}",
         t.scenario
     );
-    assert!(t.scenario.contains(rigcal::world::discrepancy::FLAG));
+    assert!(t.scenario.contains(rigcal_sim::world::discrepancy::FLAG));
     // Library terms the diagnosis named beside it are written commented only.
     let written: Vec<&str> = t.scenario.lines().filter(|l| !l.starts_with('#')).collect();
     for kind in [

@@ -6,8 +6,8 @@
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::rig::Rig;
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::rig::Rig;
 use std::process::Command;
 
 mod common;
@@ -104,8 +104,8 @@ fn params(model: &std::path::Path) -> Vec<(String, f64, f64)> {
 
 #[test]
 fn an_unknown_tracker_frame_and_marker_are_identified_with_the_kinematics() {
-    use rigcal::identification::{analyse, candidate_order, random_poses};
-    use rigcal::world::World;
+    use rigcal_model::identification::{analyse, candidate_order, random_poses};
+    use rigcal_sim::world::World;
     let dir = tempfile::tempdir().unwrap();
     let urdf_path = dir.path().join("synthetic8.urdf");
     std::fs::write(&urdf_path, urdf()).unwrap();
@@ -134,7 +134,8 @@ fn an_unknown_tracker_frame_and_marker_are_identified_with_the_kinematics() {
             let id = rig.chain.layout().ids()[i];
             if matches!(
                 id.transform,
-                rigcal::kinematics::TransformId::Frame | rigcal::kinematics::TransformId::Marker
+                rigcal_core::kinematics::TransformId::Frame
+                    | rigcal_core::kinematics::TransformId::Marker
             ) {
                 continue;
             }

@@ -178,16 +178,18 @@ fn an_unmeasurable_region_on_the_path_is_generalised_by_the_fcmac() {
 /// reload the model, evaluate along the Fig. 6 path.
 #[test]
 fn the_pipeline_as_library_calls_meets_the_papers_accuracy_on_the_fig6_path() {
-    use rigcal::calibration::{self, CalibrationOptions, PathChoice, PathOptions, Source};
+    use rigcal_calibration::{
+        self as calibration, CalibrationOptions, PathChoice, PathOptions, Source,
+    };
     use std::path::Path;
-    let sc = rigcal::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).unwrap();
+    let sc = rigcal_sim::world::Scenario::load(Path::new("sim/paper-sim.toml"), None).unwrap();
     let opts = CalibrationOptions::default();
     let cal = calibration::calibrate(&sc.rig, Source::Scenario(&sc), &opts).unwrap();
     assert!(cal.text().contains("paper: 110 regions, 2200 measurements"));
     let dir = tempfile::tempdir().unwrap();
     let file = dir.path().join("m.json");
     cal.model.save(&file).unwrap();
-    let loaded = rigcal::model::ModelFile::load(&file).unwrap();
+    let loaded = rigcal_model::model::ModelFile::load(&file).unwrap();
     let paths = calibration::build_paths(&loaded.rig, &[PathChoice::Fig6], &PathOptions::default())
         .unwrap();
     let names = calibration::PAPER_TRACED_CEPS.map(String::from);
@@ -214,17 +216,17 @@ fn the_pipeline_as_library_calls_meets_the_papers_accuracy_on_the_fig6_path() {
 /// division at the paper's settings on the simulated arm, saved, reloaded and evaluated along
 /// `path`; the model and the figures per method (with the error inside an unmeasurable region).
 mod paper_fig6 {
-    use rigcal::calibration::{
-        self, CalibrationOptions, PathChoice, PathFigures, PathOptions, Source,
+    use rigcal_calibration::{
+        self as calibration, CalibrationOptions, PathChoice, PathFigures, PathOptions, Source,
     };
-    use rigcal::learners::LearnerKind;
-    use rigcal::model::{ModelBody, ModelFile};
+    use rigcal_model::learners::LearnerKind;
+    use rigcal_model::model::{ModelBody, ModelFile};
     use std::path::Path;
 
     pub const SCENARIO: &str = "sim/paper-fig6.toml";
 
-    pub fn scenario() -> rigcal::world::Scenario {
-        rigcal::world::Scenario::load(Path::new(SCENARIO), None).unwrap()
+    pub fn scenario() -> rigcal_sim::world::Scenario {
+        rigcal_sim::world::Scenario::load(Path::new(SCENARIO), None).unwrap()
     }
 
     /// The figures of `model` along `path` (Fig. 6 or Fig. 7).
@@ -273,8 +275,8 @@ mod paper_fig6 {
 /// FCMAC's largest CEP jump below the regions' and CMAC's on the same division.
 #[test]
 fn paper_fig6_joint_division_meets_the_papers_figures_on_the_fig6_path() {
-    use rigcal::calibration::{CalibrationOptions, PathChoice};
-    use rigcal::learners::LearnerKind;
+    use rigcal_calibration::{CalibrationOptions, PathChoice};
+    use rigcal_model::learners::LearnerKind;
     let model = paper_fig6::calibrate(&CalibrationOptions::default());
     let regions = paper_fig6::regions(&model);
     assert!((20..=110).contains(&regions), "{regions} regions");
@@ -291,7 +293,7 @@ fn paper_fig6_joint_division_meets_the_papers_figures_on_the_fig6_path() {
         &paper_fig6::with(LearnerKind::Cmac, &model),
         PathChoice::Fig6,
     );
-    let jumps = |f: &rigcal::calibration::PathFigures, m: &str| {
+    let jumps = |f: &rigcal_calibration::PathFigures, m: &str| {
         f.method(m).unwrap().largest_cep_jump.clone()
     };
     let (fcmac, regions_j, cmac_j) = (
@@ -314,8 +316,8 @@ fn paper_fig6_joint_division_meets_the_papers_figures_on_the_fig6_path() {
 /// FCMAC below 0.1 mm on the spherical path and smoother than the regions.
 #[test]
 fn paper_fig6_cartesian_division_keeps_the_fcmac_below_the_demand_on_the_fig7_path() {
-    use rigcal::calibration::{CalibrationOptions, PathChoice};
-    use rigcal::division::Space;
+    use rigcal_calibration::{CalibrationOptions, PathChoice};
+    use rigcal_model::division::Space;
     let model = paper_fig6::calibrate(&CalibrationOptions {
         space: Space::Cartesian,
         ..CalibrationOptions::default()
@@ -333,8 +335,8 @@ fn paper_fig6_cartesian_division_keeps_the_fcmac_below_the_demand_on_the_fig7_pa
 #[test]
 #[ignore]
 fn paper_fig6_converged_cartesian_division_meets_the_demand_on_the_fig7_path() {
-    use rigcal::calibration::{CalibrationOptions, PathChoice};
-    use rigcal::division::Space;
+    use rigcal_calibration::{CalibrationOptions, PathChoice};
+    use rigcal_model::division::Space;
     let model = paper_fig6::calibrate(&CalibrationOptions {
         space: Space::Cartesian,
         max_regions: Some(260),
@@ -353,7 +355,7 @@ fn paper_fig6_converged_cartesian_division_meets_the_demand_on_the_fig7_path() {
 /// (position training on the tolerant CEPs, the defaults) beats that on mean and max.
 #[test]
 fn paper_fig6_unmeasurable_region_is_reported_on_the_fig6_path() {
-    use rigcal::calibration::{CalibrationOptions, PathChoice};
+    use rigcal_calibration::{CalibrationOptions, PathChoice};
     let model = paper_fig6::calibrate(&CalibrationOptions {
         unmeasurable_at: Some([92.0, 75.0, -22.0]),
         unmeasurable_depth: Some(7),

@@ -6,10 +6,10 @@ use approx::assert_relative_eq;
 use nalgebra::{Isometry3, Translation3, UnitQuaternion, Vector3};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::recording::Recording;
-use rigcal::rig::{Instrument, Rig, TablePanel};
-use rigcal::world::{
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::{Instrument, Rig, TablePanel};
+use rigcal_sim::world::{
     fig6_path, panel_report, pin_angle_ok, Backlash, DriftTarget, Effect, Harmonic,
     JointCompliance, MeasurementSettings, MissReason, MotionHistory, PointMass, RegistrationOffset,
     Scenario, TableScale, TableSquareness, ThermalDrift, Touch, TransmissionError, World,

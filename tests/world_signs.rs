@@ -2,9 +2,9 @@
 //! of ±0.4 mm / ±0.05° keep the uncalibrated error along the Fig. 6 path within 0.4–1.2 mm.
 //! Run with `cargo test --release --test world_signs -- --ignored --nocapture`.
 
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::rig::Rig;
-use rigcal::world::{fig6_path, identifiable};
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::rig::Rig;
+use rigcal_sim::world::{fig6_path, identifiable};
 use std::path::Path;
 
 #[test]

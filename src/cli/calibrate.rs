@@ -1,16 +1,16 @@
 //! `rigcal calibrate`: the variable D-H parameter model — recursive division, per-region CEPs and
 //! a learner — from a recording (offline), a simulated world that measures what the division
 //! asks for (planning), or a measurement session (planning through the rig); see
-//! [`crate::calibration`].
+//! [`rigcal_calibration`].
 
-use crate::calibration::{
-    self, Calibrated, CalibrationError, CalibrationOptions, PlanningFiles, Source,
-};
-use crate::learners::LearnerKind;
-use crate::rig::controller::CommandPath;
-use crate::rig::Rig;
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use rigcal_calibration::{
+    self as calibration, Calibrated, CalibrationError, CalibrationOptions, PlanningFiles, Source,
+};
+use rigcal_core::rig::Rig;
+use rigcal_devices::devices::controller::CommandPath;
+use rigcal_model::learners::LearnerKind;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
@@ -90,7 +90,7 @@ pub fn run(a: Args) -> Result<()> {
     let calibrated = match (&a.recording, &a.scenario, &a.session) {
         (Some(dir), None, _) => offline(&rig, dir, &opts)?,
         (None, Some(scenario), _) => {
-            let sc = crate::world::Scenario::load(scenario, None)?;
+            let sc = rigcal_sim::world::Scenario::load(scenario, None)?;
             let c = with_bar(&opts, |p| {
                 calibration::calibrate_with_progress(&rig, Source::Scenario(&sc), &opts, p)
             })?;
@@ -111,7 +111,7 @@ pub fn run(a: Args) -> Result<()> {
         let from = from.map(|p| p.as_path()).unwrap_or(Path::new("-"));
         let rows = calibrated.model.fitted_from.measurements;
         let source = super::report_source(&rig, &a.rig, from, rows);
-        let html = crate::report::html::model_report(&source, &calibrated.model);
+        let html = rigcal_model::report::html::model_report(&source, &calibrated.model);
         super::write_report(path, &html)?;
     }
     Ok(())
@@ -220,21 +220,24 @@ fn open_session<'r>(
     dir: &Path,
     note: String,
     fallbacks: &Arc<AtomicUsize>,
-) -> Result<crate::session::Session<'r>> {
+) -> Result<rigcal_devices::session::Session<'r>> {
     let scenario = super::session::load_scenario(rig, &a.rig, a.sim.as_deref(), None)?;
-    let opened =
-        crate::devices::open_rig(rig, scenario.as_ref(), crate::devices::SimClock::Virtual)?
-            .on_command_path(calibration::rig_check::command_path(rig), fallbacks);
-    let mut opts = crate::session::SessionOptions::new(dir);
+    let opened = rigcal_sim::emulation::open_rig(
+        rig,
+        scenario.as_ref(),
+        rigcal_devices::devices::SimClock::Virtual,
+    )?
+    .on_command_path(calibration::rig_check::command_path(rig), fallbacks);
+    let mut opts = rigcal_devices::session::SessionOptions::new(dir);
     opts.seed = a.settings.seed;
     opts.resume = a.resume;
     opts.fsync = !opened.devices.clock.is_virtual();
-    opts.info = crate::recording::SessionInfo {
+    opts.info = rigcal_core::recording::SessionInfo {
         rig: Some(a.rig.display().to_string()),
         scenario: a.sim.as_ref().map(|p| p.display().to_string()),
         seed: scenario.as_ref().map(|s| s.seed),
         notes: Some(note),
         ..Default::default()
     };
-    Ok(crate::session::Session::open(rig, opened, opts)?)
+    Ok(rigcal_devices::session::Session::open(rig, opened, opts)?)
 }

@@ -1,12 +1,12 @@
 //! `rigcal compare`: conventional calibration, the variable D-H model with FCMAC (seed 000) and
 //! the neuro-kinematic model (seed 001) on one recording and one validation set, side by side;
-//! as a table (terminal and Markdown) and SVG plots. See [`crate::calibration::compare`].
+//! as a table (terminal and Markdown) and SVG plots. See [`rigcal_calibration::compare`].
 
-use crate::calibration::{self, CalibrationOptions, CompareInput};
-use crate::report::PathSpec;
-use crate::rig::Rig;
-use crate::world::Scenario;
 use anyhow::{bail, Result};
+use rigcal_calibration::{self as calibration, CalibrationOptions, CompareInput};
+use rigcal_core::rig::Rig;
+use rigcal_model::report::PathSpec;
+use rigcal_sim::world::Scenario;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal compare`.

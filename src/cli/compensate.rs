@@ -1,16 +1,14 @@
 //! `rigcal compensate`: joint commands for target positions with a calibrated model
-//! ([`crate::compensation::compensate_targets`]; with the model's effects or a planned
-//! approach, [`crate::compensation::hybrid::compensate_path`]).
+//! ([`rigcal_model::compensation::compensate_targets`]; with the model's effects or a planned
+//! approach, [`rigcal_model::model::hybrid::compensate_path`]).
 
-use crate::compensation::hybrid::{compensate_path, path_csv, Approach, HybridArm, HybridOptions};
-use crate::compensation::{
-    compensate_targets, with_pose_columns, CompensationOptions, TargetError,
-};
-use crate::kinematics::Robot;
-use crate::model::{LoadedModel, ModelFile};
-use crate::recording::{commands_csv, read_targets, Target};
-use crate::rig::controller::{CommandPath, ControllerKinematics};
 use anyhow::{Context, Result};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::{commands_csv, read_targets, Target};
+use rigcal_devices::devices::controller::{with_pose_columns, CommandPath, ControllerKinematics};
+use rigcal_model::compensation::{compensate_targets, CompensationOptions, TargetError};
+use rigcal_model::model::hybrid::{compensate_path, path_csv, Approach, HybridArm, HybridOptions};
+use rigcal_model::model::{LoadedModel, ModelFile};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal compensate`.
@@ -62,10 +60,7 @@ pub fn run(a: Args) -> Result<()> {
         anyhow::bail!("--payload-kg must be zero or positive");
     }
     let hybrid = !loaded.file.effects.is_empty() || a.approach == ApproachArg::Consistent;
-    let path = loaded
-        .rig
-        .devices
-        .as_ref()
+    let path = rigcal_devices::config::DevicesConfig::read_opt(&loaded.rig)
         .map(|d| d.arm.command_path)
         .unwrap_or_default();
     let (text, worst) = if hybrid {

@@ -18,18 +18,17 @@
 //! Everything goes to `--out`; `summary.txt` there repeats the closing table and
 //! `summary.json` holds its figures.
 
-use crate::calibration::sec7::{self, Sec7Files, Sec7Options, Sec7Report, Sec7Stage, Sec7Summary};
-use crate::calibration::{
-    self, CalibrationOptions, FigureRun, PaperFigure, PaperRegimeSummary, PathFigures, Source,
-};
-use crate::division::{Selection, Space};
-use crate::kinematics::Robot;
-use crate::learners::{FcmacTraining, LearnerKind, LearnerSettings};
-use crate::model::{ModelBody, ModelFile};
-use crate::report::{mean_max_rows, PathSpec};
-use crate::rig::Rig;
-use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
+use rigcal_calibration::{self as calibration, CalibrationOptions, PathFigures, Source};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::rig::Rig;
+use rigcal_model::division::{Selection, Space};
+use rigcal_model::learners::{FcmacTraining, LearnerKind, LearnerSettings};
+use rigcal_model::model::{ModelBody, ModelFile};
+use rigcal_model::report::{mean_max_rows, PathSpec};
+use rigcal_paper::paper_regime::{FigureRun, PaperFigure, PaperRegimeSummary};
+use rigcal_paper::sec7::{self, Sec7Files, Sec7Options, Sec7Report, Sec7Stage, Sec7Summary};
+use rigcal_sim::world::Scenario;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -198,7 +197,7 @@ fn paper_steps(a: &Args) -> Result<PaperRegimeSummary> {
         .collect();
     let share = sc
         .world()
-        .error_split(&crate::world::fig6_path(101, rig.chain.dof()))
+        .error_split(&rigcal_sim::world::fig6_path(101, rig.chain.dof()))
         .share();
     Ok(PaperRegimeSummary {
         scenario: PAPER_SCENARIO.into(),
@@ -314,7 +313,7 @@ fn leaf_depth_at(model: &ModelFile, rig: &Rig, at: [f64; 3]) -> Result<usize> {
     let ModelBody::Variable { tree, .. } = &model.model else {
         bail!("the Fig. 6 model has no division");
     };
-    let space = crate::division::DivisionSpace::new(rig, tree.space)?;
+    let space = rigcal_model::division::DivisionSpace::new(rig, tree.space)?;
     let q: Vec<f64> = rig
         .held()
         .iter()
@@ -379,7 +378,7 @@ fn rig_steps(a: &Args) -> Result<Sec7Report> {
 /// The diagnosis as `rigcal diagnose` prints it, its report and plots written.
 fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()> {
     let rec = super::read_recording(rig, recording)?;
-    let report = crate::diagnosis::diagnose(rig, &rec, &Default::default())
+    let report = rigcal_model::diagnosis::diagnose(rig, &rec, &Default::default())
         .with_context(|| format!("diagnosing {}", recording.display()))?;
     println!(
         "recording {}\n{}",
@@ -388,7 +387,7 @@ fn diagnose(rig: &Rig, recording: &Path, plots: &Path, json: &Path) -> Result<()
     );
     std::fs::write(json, serde_json::to_string_pretty(&report)?)
         .with_context(|| format!("writing {}", json.display()))?;
-    let written = crate::diagnosis::plots::write(rig, &rec, plots)?;
+    let written = rigcal_model::diagnosis::plots::write(rig, &rec, plots)?;
     println!(
         "report written to {}\n{written} plot(s) written to {}",
         json.display(),
@@ -407,7 +406,10 @@ fn clear_sec7_dir(dir: &Path) -> Result<()> {
     if !dir.exists() {
         return Ok(());
     }
-    let journal = |d: &Path| d.join(crate::session::journal::JOURNAL_FILE).exists();
+    let journal = |d: &Path| {
+        d.join(rigcal_devices::session::journal::JOURNAL_FILE)
+            .exists()
+    };
     if !journal(dir) && !journal(&dir.join("division")) && dir.read_dir()?.next().is_some() {
         bail!(
             "{} exists and is not a directory of an earlier demo; choose another --out",

@@ -1,14 +1,14 @@
 //! `rigcal diagnose`: what physics the nominal model leaves out of a recording; with `--sim`,
-//! the twin that learns from it ([`crate::twin::learn`]); with `--model`, a model file with the
-//! named effects ([`crate::twin::model_with_named_effects`]).
+//! the twin that learns from it ([`rigcal_sim::twin::learn`]); with `--model`, a model file with the
+//! named effects ([`rigcal_sim::twin::model_with_named_effects`]).
 
 use super::{RecordingArg, RigArg};
-use crate::diagnosis::{diagnose, Options, Report};
-use crate::identification::sessions::{physics_heldout, without_rows, PerSession};
-use crate::recording::Recording;
-use crate::rig::Rig;
-use crate::world::Scenario;
 use anyhow::{Context, Result};
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::Rig;
+use rigcal_model::diagnosis::sessions::{physics_heldout, without_rows, PerSession};
+use rigcal_model::diagnosis::{diagnose, Options, Report};
+use rigcal_sim::world::Scenario;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal diagnose`.
@@ -78,18 +78,18 @@ pub fn run(a: Args) -> Result<()> {
         println!("report written to {}", path.display());
     }
     if let Some(html) = &a.report {
-        let residuals = crate::diagnosis::plots::residual_series(&rig, &rec)?;
+        let residuals = rigcal_model::diagnosis::plots::residual_series(&rig, &rec)?;
         let source = super::report_source(&rig, &a.rig.rig, path, rec.rows.len());
-        let text = crate::report::html::diagnosis_report(&source, &report, &residuals);
+        let text = rigcal_model::report::html::diagnosis_report(&source, &report, &residuals);
         super::write_report(html, &text)?;
     }
     if let Some(dir) = &a.plots {
-        let written = crate::diagnosis::plots::write(&rig, &rec, dir)
+        let written = rigcal_model::diagnosis::plots::write(&rig, &rec, dir)
             .with_context(|| format!("writing plots to {}", dir.display()))?;
         println!("{written} plot(s) written to {}", dir.display());
     }
     if let Some(out) = &a.model {
-        let (file, left) = crate::twin::model_with_named_effects(&rig, &rec, &report)?;
+        let (file, left) = rigcal_sim::twin::model_with_named_effects(&rig, &rec, &report)?;
         for l in left {
             println!("not in the model: {l}");
         }
@@ -103,8 +103,8 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 fn twin(
-    rig: &crate::rig::Rig,
-    rec: &crate::recording::Recording,
+    rig: &rigcal_core::rig::Rig,
+    rec: &rigcal_core::recording::Recording,
     sim: &Path,
     out: &Path,
 ) -> Result<()> {
@@ -120,7 +120,7 @@ fn twin(
         );
     }
     eprintln!("replaying {} rows in {} …", rec.rows.len(), sim.display());
-    let t = crate::twin::learn(&scenario, &source, rec, out, &Default::default())?;
+    let t = rigcal_sim::twin::learn(&scenario, &source, rec, out, &Default::default())?;
     print!("{}", t.text());
     std::fs::write(out, &t.scenario).with_context(|| format!("writing {}", out.display()))?;
     println!("updated scenario written to {}", out.display());

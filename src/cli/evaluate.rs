@@ -1,12 +1,12 @@
 //! `rigcal evaluate`: position error along paths of a simulated arm without calibration and with
 //! every model a model file holds (conventional, regions, learner), with CEP traces and plots;
-//! see [`crate::calibration::evaluate`].
+//! see [`rigcal_calibration::evaluate`].
 
-use crate::calibration::{self, PathChoice, PathFigures, PathOptions, TracedCep};
-use crate::model::ModelFile;
-use crate::report::PathSpec;
-use crate::world::Scenario;
 use anyhow::{Context, Result};
+use rigcal_calibration::{self as calibration, PathChoice, PathFigures, PathOptions, TracedCep};
+use rigcal_model::model::ModelFile;
+use rigcal_model::report::PathSpec;
+use rigcal_sim::world::Scenario;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal evaluate`.
@@ -87,7 +87,7 @@ pub fn run(a: Args) -> Result<()> {
 
 /// For a model with effects: each path's targets compensated in order with the geometry alone
 /// and with the effects, and the true error of the moves in the scenario's world
-/// ([`crate::twin::hybrid::compensated_errors`]).
+/// ([`rigcal_sim::twin::hybrid::compensated_errors`]).
 fn evaluate_effects(
     model: &Path,
     scenario: &Path,
@@ -99,7 +99,7 @@ fn evaluate_effects(
         return Ok(());
     }
     let world = Scenario::load(scenario, None)?.world();
-    let opts = crate::compensation::hybrid::HybridOptions {
+    let opts = rigcal_model::model::hybrid::HybridOptions {
         payload_kg,
         ..Default::default()
     };
@@ -109,7 +109,7 @@ fn evaluate_effects(
             path.name
         );
         let (geometry, effects) =
-            crate::twin::hybrid::geometry_vs_effects(&loaded, &world, &path.points, &opts)
+            rigcal_sim::twin::hybrid::geometry_vs_effects(&loaded, &world, &path.points, &opts)
                 .map_err(|e| {
                     anyhow::Error::new(e.source).context(format!("path point {}", e.line))
                 })?;

@@ -1,8 +1,8 @@
-//! `rigcal export`: a calibration taken home ([`crate::export`]).
+//! `rigcal export`: a calibration taken home ([`rigcal_model::export`]).
 
-use crate::export::{export_urdf, exported_parameters, offsets_yaml, ExportOptions};
-use crate::model::ModelFile;
 use anyhow::{Context, Result};
+use rigcal_model::export::{export_urdf, exported_parameters, offsets_yaml, ExportOptions};
+use rigcal_model::model::ModelFile;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal export`.

@@ -1,14 +1,14 @@
-//! `rigcal identify`: conventional calibration of a recording ([`crate::identification::identify`]).
+//! `rigcal identify`: conventional calibration of a recording ([`rigcal_model::identification::identify`]).
 
 use super::{OutArg, RecordingArg, RigArg};
-use crate::identification::outliers::Outlier;
-use crate::identification::sessions::{fit_sessions, heldout_sessions, PerSession};
-use crate::identification::{identify, FitResult, HeldOut, Identification, IdentifyOptions};
-use crate::kinematics::Robot;
-use crate::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
-use crate::model::{ModelFile, Provenance};
-use crate::rig::Rig;
 use anyhow::Result;
+use rigcal_core::kinematics::Robot;
+use rigcal_core::rig::Rig;
+use rigcal_model::diagnosis::sessions::{fit_sessions, heldout_sessions, PerSession};
+use rigcal_model::identification::outliers::Outlier;
+use rigcal_model::identification::{identify, FitResult, HeldOut, Identification, IdentifyOptions};
+use rigcal_model::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
+use rigcal_model::model::{ModelFile, Provenance};
 use std::path::{Path, PathBuf};
 
 use super::read_recording;
@@ -57,7 +57,7 @@ pub struct Args {
 }
 
 /// How much of the model to fit (the command line's names for
-/// [`crate::identification::Level`]).
+/// [`rigcal_model::identification::Level`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum Level {
     /// Measurement frame and marker only.
@@ -68,7 +68,7 @@ pub enum Level {
     Full,
 }
 
-impl From<Level> for crate::identification::Level {
+impl From<Level> for rigcal_model::identification::Level {
     fn from(l: Level) -> Self {
         match l {
             Level::Frames => Self::Frames,
@@ -100,7 +100,7 @@ pub fn run(a: Args) -> Result<()> {
     print_identification(&id);
     if let Some(path) = &a.report {
         let source = super::report_source(&rig, &a.rig.rig, recording, rec.rows.len());
-        let html = crate::report::html::identification_report(&source, &id);
+        let html = rigcal_model::report::html::identification_report(&source, &id);
         super::write_report(path, &html)?;
     }
     if a.effects.is_empty() {
@@ -125,7 +125,7 @@ pub fn run(a: Args) -> Result<()> {
 }
 
 /// Training on one or more sessions with a frame each, held-out sessions with their frame
-/// refitted ([`crate::identification::sessions`]).
+/// refitted ([`rigcal_model::diagnosis::sessions`]).
 fn run_sessions(a: &Args, rig: &Rig) -> Result<()> {
     let mut train = read_heldout(rig, std::slice::from_ref(&a.recording.recording))?;
     train.extend(read_heldout(rig, &a.with_session)?);

@@ -1,11 +1,11 @@
 //! `rigcal import`: a foreign CSV (laser tracker, motion capture) to a recording of
 //! spec/recordings.md — millimetres and degrees, joints in the rig's order, `seq` from row order
-//! ([`crate::recording::import`]).
+//! ([`rigcal_core::recording::import`]).
 
 use super::{OutArg, RigArg};
-use crate::kinematics::Robot;
-use crate::recording::{import_csv, ImportSpec};
 use anyhow::{bail, Result};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::{import_csv, ImportSpec};
 use std::path::PathBuf;
 
 /// Length unit of the input.
@@ -17,7 +17,7 @@ pub enum LengthUnit {
     Mm,
 }
 
-impl From<LengthUnit> for crate::recording::LengthUnit {
+impl From<LengthUnit> for rigcal_core::recording::LengthUnit {
     fn from(u: LengthUnit) -> Self {
         match u {
             LengthUnit::M => Self::M,
@@ -35,7 +35,7 @@ pub enum AngleUnit {
     Deg,
 }
 
-impl From<AngleUnit> for crate::recording::AngleUnit {
+impl From<AngleUnit> for rigcal_core::recording::AngleUnit {
     fn from(u: AngleUnit) -> Self {
         match u {
             AngleUnit::Rad => Self::Rad,

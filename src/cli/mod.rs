@@ -11,6 +11,7 @@ mod identify;
 mod import;
 mod observability;
 mod plan;
+mod progress;
 mod register;
 mod reproduce;
 mod rig_cmd;
@@ -18,11 +19,11 @@ mod session;
 mod sim_device;
 mod simulate;
 
-use crate::kinematics::Robot;
-use crate::recording::Recording;
-use crate::rig::Rig;
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::Recording;
+use rigcal_core::rig::Rig;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -219,9 +220,9 @@ pub(crate) fn read_recording(rig: &Rig, path: &Path) -> anyhow::Result<Recording
 
 /// A table of parameter values for the terminal.
 pub(crate) fn parameter_table(
-    layout: &crate::kinematics::ParamLayout,
-    fit: &crate::identification::FitResult,
-    truth: Option<&crate::kinematics::ErrorParams>,
+    layout: &rigcal_core::kinematics::ParamLayout,
+    fit: &rigcal_model::identification::FitResult,
+    truth: Option<&rigcal_core::kinematics::ErrorParams>,
 ) -> String {
     use std::fmt::Write;
     let mut s = String::new();
@@ -257,8 +258,8 @@ pub(crate) fn report_source<'a>(
     rig_path: &'a Path,
     recording: &'a Path,
     rows: usize,
-) -> crate::report::html::Source<'a> {
-    crate::report::html::Source {
+) -> rigcal_model::report::html::Source<'a> {
+    rigcal_model::report::html::Source {
         rig: &rig.name,
         rig_path: rig_path.to_str().unwrap_or("(rig file)"),
         recording: recording.to_str().unwrap_or("(recording)"),

@@ -1,11 +1,11 @@
 //! `rigcal observability`: rank, identifiable basis and confounded parameters of a rig.
 
 use super::RigArg;
-use crate::identification::{analyse, candidate_order, identifiability, random_poses};
-use crate::kinematics::Robot;
 use anyhow::Result;
 use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
+use rigcal_core::kinematics::Robot;
+use rigcal_model::identification::{analyse, candidate_order, identifiability, random_poses};
 
 /// Arguments of `rigcal observability`.
 #[derive(Debug, clap::Args)]
@@ -51,7 +51,13 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .zip(&held)
         .filter_map(|(j, h)| {
-            h.map(|v| format!("{} = {}", j.name, crate::identification::joint_label(j, v)))
+            h.map(|v| {
+                format!(
+                    "{} = {}",
+                    j.name,
+                    rigcal_model::identification::joint_label(j, v)
+                )
+            })
         })
         .collect();
     println!(

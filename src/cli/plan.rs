@@ -3,14 +3,14 @@
 //! Infeasible candidates are dropped with their reason: a summary by reason is printed and every
 //! one is listed in `<out>.dropped.csv`. Files: degrees and mm.
 
-use crate::kinematics::Robot;
-use crate::rig::Rig;
-use crate::session::{
+use anyhow::{Context, Result};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::rig::Rig;
+use rigcal_devices::session::{
     compare, plan, saving_pct, write_plan, ContactProcedure, Ordering, Plan, PlanOptions,
     PlannedVariant, RigTimeEstimate,
 };
-use crate::world::Scenario;
-use anyhow::{Context, Result};
+use rigcal_sim::world::Scenario;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -74,9 +74,11 @@ pub(crate) fn report_dropped(rig: &Rig, p: &Plan, out: &Path) -> Result<()> {
     let mut by: BTreeMap<String, usize> = BTreeMap::new();
     for d in &p.dropped {
         let key = match &d.reason {
-            crate::rig::Unmeasurable::JointLimit { .. } => "joint limit".to_string(),
-            crate::rig::Unmeasurable::PinAngle { .. } => "pin angle to the panel".to_string(),
-            crate::rig::Unmeasurable::TableTravel { axis, .. } => format!("table {axis} travel"),
+            rigcal_core::rig::Unmeasurable::JointLimit { .. } => "joint limit".to_string(),
+            rigcal_core::rig::Unmeasurable::PinAngle { .. } => "pin angle to the panel".to_string(),
+            rigcal_core::rig::Unmeasurable::TableTravel { axis, .. } => {
+                format!("table {axis} travel")
+            }
         };
         *by.entry(key).or_default() += 1;
     }
@@ -200,7 +202,7 @@ pub fn run(a: Args) -> Result<()> {
         p.points.len(),
         p.points
             .iter()
-            .filter(|x| x.region == crate::session::plan::REFERENCE_REGION)
+            .filter(|x| x.region == rigcal_devices::session::plan::REFERENCE_REGION)
             .count(),
         out.display()
     );

@@ -1,9 +1,9 @@
 //! `rigcal register`: the table-to-world registration from a recording's table coordinates
-//! ([`crate::identification::registration::register_recording`]).
+//! ([`rigcal_model::identification::registration::register_recording`]).
 
 use super::{RecordingArg, RigArg};
-use crate::identification::registration::{register_recording, Registration};
 use anyhow::Result;
+use rigcal_model::identification::registration::{register_recording, Registration};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal register`.

@@ -1,11 +1,11 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
-use crate::neural::network::Method;
-use crate::reproduce::seed001::{
+use anyhow::{bail, Context, Result};
+use rigcal_model::neural::network::Method;
+use rigcal_paper::reproduce::seed001::{
     check_figures, run_fig7, run_table, tables_for, write_fig7, write_table, ReproOptions,
     REPRODUCED_FIGURES, REPRODUCED_TABLES, TABLE5_POSES,
 };
-use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal reproduce`.

@@ -1,10 +1,10 @@
 //! `rigcal rig`: rig-file tools. `rigcal rig from-urdf` writes a rig file from a URDF chain
-//! ([`crate::kinematics::urdf::rig_file`]).
+//! ([`rigcal_core::kinematics::urdf::rig_file`]).
 
-use crate::kinematics::urdf::{chain_from_urdf, rig_file, RigFileNames};
-use crate::kinematics::Robot;
-use crate::rig::Rig;
 use anyhow::{Context, Result};
+use rigcal_core::kinematics::urdf::{chain_from_urdf, rig_file, RigFileNames};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::rig::Rig;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal rig`.

@@ -5,16 +5,17 @@
 //! On the virtual clock (a dry run without `--real-time`) nothing waits: the report gives the
 //! rig time the session would have taken.
 
-use crate::devices::{open_rig, SimClock};
-use crate::kinematics::Robot;
-use crate::recording::SessionInfo;
-use crate::rig::Rig;
-use crate::session::{
-    estimate, plan, read_plan, registration_points, run_session, write_plan, ContactProcedure,
-    ContactSettings, Progress, RigSpeeds, SessionOptions,
-};
-use crate::world::Scenario;
 use anyhow::{bail, Context, Result};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::SessionInfo;
+use rigcal_core::rig::Rig;
+use rigcal_devices::devices::SimClock;
+use rigcal_devices::session::{
+    estimate, plan, read_plan, registration_points, run_session, write_plan, ContactProcedure,
+    ContactSettings, RigSpeeds, SessionOptions,
+};
+use rigcal_sim::emulation::open_rig;
+use rigcal_sim::world::Scenario;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal session`.
@@ -46,7 +47,7 @@ pub struct Args {
     reference_every: usize,
     /// Order within a region when planning here (see `rigcal plan --help`).
     #[arg(long, default_value = "optimised")]
-    order: crate::session::Ordering,
+    order: rigcal_devices::session::Ordering,
     /// Contact procedure on the table rig: `rigcal`, or the paper-style `baseline` (see
     /// `rigcal plan --help`); a resume keeps the one the session began with.
     #[arg(long, default_value = "rigcal")]
@@ -108,7 +109,7 @@ pub fn run(a: Args) -> Result<()> {
         points.len(),
         virtual_clock,
     )?;
-    let progress = Progress::auto(points.len());
+    let progress = super::progress::session_progress(points.len());
     let report = run_session(&rig, opened, &points, opts, &progress)?;
     print_report(&a.out, &report, virtual_clock);
     println!(
@@ -121,18 +122,23 @@ pub fn run(a: Args) -> Result<()> {
 
 /// Refuses a fresh session over a recording, and a resume where there is no session.
 fn check_session_dir(a: &Args) -> Result<()> {
-    if !a.resume && a.out.join(crate::session::run::CSV_FILE).exists() {
+    if !a.resume && a.out.join(rigcal_devices::session::run::CSV_FILE).exists() {
         // Before planning: a refused run must not touch the session's files.
         bail!(
             "{} already holds a recording; resume it with --resume or choose another --out",
             a.out.display()
         );
     }
-    if a.resume && !a.out.join(crate::session::journal::JOURNAL_FILE).exists() {
+    if a.resume
+        && !a
+            .out
+            .join(rigcal_devices::session::journal::JOURNAL_FILE)
+            .exists()
+    {
         bail!(
             "{}: no session to resume here (no {}); start one without --resume",
             a.out.display(),
-            crate::session::journal::JOURNAL_FILE
+            rigcal_devices::session::journal::JOURNAL_FILE
         );
     }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))
@@ -140,13 +146,17 @@ fn check_session_dir(a: &Args) -> Result<()> {
 
 /// The session's plan: made (or read from `--plan`) and written on a fresh run, then, on a
 /// fresh and a resumed run alike, read back from the session's `plan.csv`.
-fn session_plan(a: &Args, rig: &Rig, seed: u64) -> Result<Vec<crate::session::PlannedPoint>> {
+fn session_plan(
+    a: &Args,
+    rig: &Rig,
+    seed: u64,
+) -> Result<Vec<rigcal_devices::session::PlannedPoint>> {
     let plan_path = a.out.join("plan.csv");
     if !a.resume {
         let points = match (&a.plan, a.points) {
             (Some(p), None) => read_plan(p, rig)?,
             (None, Some(n)) => {
-                let opts = crate::session::PlanOptions {
+                let opts = rigcal_devices::session::PlanOptions {
                     order: a.order,
                     ..super::plan::options(n, a.regions, a.reference_every, seed)
                 };
@@ -171,7 +181,7 @@ fn session_plan(a: &Args, rig: &Rig, seed: u64) -> Result<Vec<crate::session::Pl
 fn session_options(
     a: &Args,
     rig: &Rig,
-    scenario: Option<&crate::world::Scenario>,
+    scenario: Option<&rigcal_sim::world::Scenario>,
     seed: u64,
     points: usize,
     virtual_clock: bool,
@@ -180,7 +190,7 @@ fn session_options(
     opts.resume = a.resume;
     opts.registration_points = a.registration_points;
     if let Some(dir) = &a.registration_from {
-        let rec = crate::recording::Recording::read(dir, rig.chain.joints())
+        let rec = rigcal_core::recording::Recording::read(dir, rig.chain.joints())
             .with_context(|| format!("reading the session {}", dir.display()))?;
         let reg = rec.session.and_then(|s| s.registration);
         opts.registration = Some(reg.with_context(|| {
@@ -214,7 +224,7 @@ fn session_options(
 /// What `rigcal session` prints at the end.
 fn print_report(
     out: &std::path::Path,
-    report: &crate::session::SessionReport,
+    report: &rigcal_devices::session::SessionReport,
     virtual_clock: bool,
 ) {
     println!(

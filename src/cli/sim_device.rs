@@ -4,12 +4,12 @@
 //! there (an slcan adapter with the three drives behind it). Real time; the arm stands at its
 //! nest and the table at its power-on position in a nominal world.
 
-use crate::devices::clock::RealClock;
-use crate::devices::emulators::{serve_bytes, SlcanAdapter};
-use crate::devices::factory::{sim_emulators, SimSetup};
-use crate::rig::Rig;
-use crate::transports::SerialTransport;
 use anyhow::{bail, Context, Result};
+use rigcal_core::rig::Rig;
+use rigcal_devices::devices::clock::RealClock;
+use rigcal_devices::devices::emulators::{serve_bytes, SlcanAdapter};
+use rigcal_devices::devices::factory::{sim_emulators, SimSetup};
+use rigcal_devices::transports::SerialTransport;
 use serialport::{SerialPort, TTYPort};
 use std::io::Write;
 use std::path::PathBuf;
@@ -44,7 +44,7 @@ pub fn run(a: Args) -> Result<()> {
         bail!("only --pty is supported: the emulator is served on a pseudo-terminal");
     }
     let rig = Rig::load(&a.rig)?;
-    let cfg = rig.devices.clone().unwrap_or_default();
+    let cfg = rigcal_devices::config::DevicesConfig::read(&rig);
     let mut setup = SimSetup::nominal(&rig);
     setup.clock = RealClock::shared();
     let emus = sim_emulators(&rig, &cfg, &setup)?;

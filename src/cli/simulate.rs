@@ -4,10 +4,10 @@
 //! every random draw depends on (seed, seq, attempt) only, so a seed gives the same bytes.
 //! Files: mm and degrees.
 
-use crate::kinematics::Robot;
-use crate::recording::read_poses;
-use crate::world::{check_same_rig, random_session_poses, simulate_session, Scenario};
 use anyhow::{bail, Context, Result};
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::read_poses;
+use rigcal_sim::world::{check_same_rig, random_session_poses, simulate_session, Scenario};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal simulate`.

@@ -2,7 +2,7 @@
 //! chosen *visible* size (conventions §9: the RMS of what the geometric parameters cannot
 //! absorb) in multiples of the noise floor √3·σ.
 //!
-//! Out-of-library classes (none is a candidate of `rigcal::diagnosis`):
+//! Out-of-library classes (none is a candidate of `rigcal_model::diagnosis`):
 //! - `Dent`: a localised dent in one joint's transmission, Δq_j = A·exp(−(q_j − c)²/2w²), w 5–8 %
 //!   of the joint's range, c inside it;
 //! - `Coupling`: one joint's error driven by another joint's angle, Δq_j = A·sin(n·q_k + φ),
@@ -22,11 +22,11 @@
 use nalgebra::Vector3;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal::diagnosis::{linalg::rms3, standard_fit};
-use rigcal::identification::random_poses;
-use rigcal::kinematics::{ErrorParams, Robot};
-use rigcal::recording::Recording;
-use rigcal::world::{
+use rigcal_core::kinematics::{ErrorParams, Robot};
+use rigcal_core::recording::Recording;
+use rigcal_model::diagnosis::{linalg::rms3, standard_fit};
+use rigcal_model::identification::random_poses;
+use rigcal_sim::world::{
     Backlash, DriftTarget, Effect, JointCompliance, JointContext, PointMass, Scenario, TableScale,
     TableSquareness, ThermalDrift, TransmissionError,
 };
@@ -336,7 +336,7 @@ pub fn out_of_library(class: Class, seed: u64, size: f64) -> Case {
                     (Class::Harmonic, Shape::Sine { order, phase }) => {
                         Arc::new(TransmissionError {
                             joint: acted,
-                            harmonics: vec![rigcal::world::Harmonic {
+                            harmonics: vec![rigcal_sim::world::Harmonic {
                                 order: order as u32,
                                 amplitude: a,
                                 phase,
@@ -463,7 +463,7 @@ pub fn library_cases() -> Vec<LibraryCase> {
     fn harmonic(joint: usize, order: u32, deg: f64, phase_deg: f64) -> Arc<dyn Effect> {
         Arc::new(TransmissionError {
             joint,
-            harmonics: vec![rigcal::world::Harmonic {
+            harmonics: vec![rigcal_sim::world::Harmonic {
                 order,
                 amplitude: deg.to_radians(),
                 phase: phase_deg.to_radians(),

@@ -5,7 +5,7 @@
 #![allow(dead_code)]
 
 use nalgebra::{Isometry3, Translation3, Unit, UnitQuaternion, Vector3};
-use rigcal::rig::Rig;
+use rigcal_core::rig::Rig;
 use std::f64::consts::FRAC_PI_2;
 use std::path::Path;
 use std::process::Command;

@@ -1,0 +1,187 @@
+//! The figures of an evaluation as data: per path and method the mean and largest position
+//! error, the largest CEP jumps, and (seed 000 Fig. 8) the error inside the region that could
+//! not be measured. `rigcal evaluate --json` writes them; the demo's `summary.json` holds the
+//! same per-path records.
+
+use super::evaluate::TracedCep;
+use rigcal_model::division::{Bounds, DivisionSpace};
+use rigcal_model::model::{LoadedModel, ModelBody};
+use rigcal_model::report::{PathResult, PathSpec};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+
+/// One method along one path.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct MethodFigures {
+    /// `uncalibrated`, `conventional`, `regions`, `fcmac`, `cmac`, …
+    pub method: String,
+    /// Mean position error (mm) over the points compensated.
+    pub mean_mm: f64,
+    /// Largest position error (mm).
+    pub max_mm: f64,
+    /// Points where compensation failed.
+    pub failures: usize,
+    /// Largest jump of each traced CEP between neighbouring points, keyed `name_unit`
+    /// (`theta1_deg`, `d1_mm`); empty for the uncalibrated arm.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub largest_cep_jump: BTreeMap<String, f64>,
+}
+
+/// The errors along a path inside the region that could not be measured.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InsideFigures {
+    /// The region's id, when the division made it a region of its own.
+    pub region: Option<String>,
+    /// Indices of the path's points inside it.
+    pub points: Vec<usize>,
+    /// Each method there (no CEP jumps).
+    pub methods: Vec<MethodFigures>,
+}
+
+/// One path's figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PathFigures {
+    /// The path's name.
+    pub path: String,
+    /// Its points.
+    pub points: usize,
+    /// Every method, uncalibrated first.
+    pub methods: Vec<MethodFigures>,
+    /// Inside the unmeasurable region, when the model has one and the path crosses it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub inside_unmeasurable: Option<InsideFigures>,
+}
+
+impl PathFigures {
+    /// The figures of `results` along `path` for `model`.
+    pub fn of(
+        model: &LoadedModel,
+        path: &PathSpec,
+        results: &[PathResult],
+        trace: &[TracedCep],
+    ) -> Self {
+        let methods = results
+            .iter()
+            .map(|r| method_figures(r, None, trace))
+            .collect();
+        Self {
+            path: path.name.clone(),
+            points: path.points.len(),
+            methods,
+            inside_unmeasurable: inside_unmeasurable(model, path, results),
+        }
+    }
+
+    /// A method's figures, by name.
+    pub fn method(&self, name: &str) -> Option<&MethodFigures> {
+        self.methods.iter().find(|m| m.method == name)
+    }
+
+    /// The line `rigcal evaluate` prints about the unmeasurable region (empty without one).
+    pub fn inside_text(&self) -> String {
+        let Some(inside) = &self.inside_unmeasurable else {
+            return String::new();
+        };
+        let region = inside
+            .region
+            .as_deref()
+            .unwrap_or("(within a larger region)");
+        let (first, last) = (inside.points[0], inside.points[inside.points.len() - 1]);
+        let mut s = format!(
+            "  inside the unmeasurable region {region} (points {first}–{last}, {} of them), mean / max mm:",
+            inside.points.len()
+        );
+        for m in &inside.methods {
+            let _ = write!(s, "  {} {:.4} / {:.4}", m.method, m.mean_mm, m.max_mm);
+        }
+        s.push('\n');
+        s
+    }
+}
+
+impl MethodFigures {
+    /// The figures of one method's results along a path, with the jumps of the `trace`d CEPs.
+    pub fn of(result: &PathResult, trace: &[TracedCep]) -> Self {
+        method_figures(result, None, trace)
+    }
+}
+
+/// The figures of one method, over `only` the points given (None: all).
+fn method_figures(r: &PathResult, only: Option<&[usize]>, trace: &[TracedCep]) -> MethodFigures {
+    let errors: Vec<f64> = match only {
+        None => r.errors.clone(),
+        Some(idx) => idx
+            .iter()
+            .filter_map(|&i| r.errors.get(i).copied())
+            .collect(),
+    };
+    let finite: Vec<f64> = errors.iter().copied().filter(|e| e.is_finite()).collect();
+    let mean_mm = finite.iter().sum::<f64>() / finite.len().max(1) as f64;
+    let max_mm = finite.iter().copied().fold(0.0, f64::max);
+    let largest_cep_jump = match only {
+        Some(_) => BTreeMap::new(),
+        None => trace
+            .iter()
+            .zip(r.largest_jumps())
+            .map(|(t, j)| (format!("{}_{}", t.name, t.unit), j))
+            .collect(),
+    };
+    MethodFigures {
+        method: r.model.clone(),
+        mean_mm,
+        max_mm,
+        failures: errors.len() - finite.len(),
+        largest_cep_jump,
+    }
+}
+
+/// The errors along `path` inside the model's unmeasurable region, if it has one and the path
+/// enters it.
+fn inside_unmeasurable(
+    model: &LoadedModel,
+    path: &PathSpec,
+    results: &[PathResult],
+) -> Option<InsideFigures> {
+    let ModelBody::Variable { division, tree, .. } = &model.file.model else {
+        return None;
+    };
+    let bounds: Bounds = division.unmeasurable?;
+    let space = DivisionSpace::new(&model.rig, tree.space).ok()?;
+    let points: Vec<usize> = path
+        .points
+        .iter()
+        .enumerate()
+        .filter(|(_, q)| bounds.holds(&space.coords(q)))
+        .map(|(i, _)| i)
+        .collect();
+    if points.is_empty() {
+        return None;
+    }
+    let region = tree
+        .unmeasurable()
+        .into_iter()
+        .find(|l| l.bounds == bounds)
+        .map(|l| l.id.clone());
+    Some(InsideFigures {
+        region,
+        methods: results
+            .iter()
+            .map(|r| method_figures(r, Some(&points), &[]))
+            .collect(),
+        points,
+    })
+}
+
+/// `rigcal evaluate --json`: the model and scenario files and every path's figures.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EvaluationJson {
+    /// Always `rigcal-evaluation`.
+    pub format: &'static str,
+    /// The model file.
+    pub model: String,
+    /// The scenario whose arm is the truth.
+    pub scenario: String,
+    /// Per path.
+    pub paths: Vec<PathFigures>,
+}

@@ -1,0 +1,299 @@
+//! Safety wrappers: limits that wrap any device and refuse a command before a byte is sent.
+//!
+//! - [`LimitedArm`]: every joint within the rig's joint limits (radians inside, degrees in
+//!   errors); a Cartesian move's target joints and the joints the controller's nominal inverse
+//!   kinematics give for the pose as sent (rounded) both checked.
+//! - [`LimitedTable`]: every axis within the table travel 0..travel (mm, table frame), and z
+//!   ascending within a pass: after [`Table::begin_pass`], no move may go lower than the highest
+//!   z of the pass minus the rig file's `pass_retract_mm` (the z arm approaches from below).
+
+use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use crate::devices::controller::ControllerKinematics;
+use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName, Table};
+use rigcal_core::kinematics::JointSpec;
+
+/// An [`Arm`] that refuses targets outside the joint limits.
+#[derive(Debug)]
+pub struct LimitedArm<A> {
+    inner: A,
+    joints: Vec<JointSpec>,
+    controller: Option<ControllerKinematics>,
+}
+
+impl<A: Arm> LimitedArm<A> {
+    /// Wraps `inner` with the limits of `joints`.
+    pub fn new(inner: A, joints: Vec<JointSpec>) -> Self {
+        LimitedArm {
+            inner,
+            joints,
+            controller: None,
+        }
+    }
+
+    /// Also checks Cartesian moves through the controller's nominal inverse kinematics.
+    pub fn with_controller(mut self, controller: ControllerKinematics) -> Self {
+        self.controller = Some(controller);
+        self
+    }
+
+    /// The joints a Cartesian move of `q` makes the controller solve for, checked.
+    fn check_cartesian(&self, q: &[f64]) -> Result<(), DeviceError> {
+        self.check(q)?;
+        let Some(k) = &self.controller else {
+            return Ok(());
+        };
+        let pose = ControllerKinematics::rounded(&k.pose(q));
+        let solved = k.solve(&pose, q).map_err(|e| DeviceError::PoseRefused {
+            pose,
+            detail: e.to_string(),
+        })?;
+        self.check(&solved).map_err(|e| DeviceError::PoseRefused {
+            pose,
+            detail: format!("the controller's solution: {e}"),
+        })
+    }
+
+    /// The wrapped arm.
+    pub fn into_inner(self) -> A {
+        self.inner
+    }
+
+    fn check(&self, q: &[f64]) -> Result<(), DeviceError> {
+        if q.len() != self.joints.len() {
+            return Err(DeviceError::Config {
+                key: "arm".into(),
+                reason: format!("{} joint values for {} joints", q.len(), self.joints.len()),
+            });
+        }
+        for (spec, v) in self.joints.iter().zip(q) {
+            if !(v.is_finite() && spec.within(*v)) {
+                return Err(DeviceError::Refused {
+                    device: DeviceName::Arm,
+                    what: format!("joint {}", spec.name),
+                    value: spec.kind.to_file_units(*v),
+                    min: spec.kind.to_file_units(spec.min),
+                    max: spec.kind.to_file_units(spec.max),
+                    why: "joint limits of the rig file",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<A: Arm> Arm for LimitedArm<A> {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.home(timeout)
+    }
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.set_speed(level, timeout)
+    }
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.check(q)?;
+        self.inner.move_to(q, timeout)
+    }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.check(q)?;
+        self.inner.start_move(q, timeout)
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.inner.wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.check_cartesian(q)?;
+        self.inner.start_move_cartesian(q, timeout)
+    }
+    fn commanded(&self) -> Option<Vec<f64>> {
+        self.inner.commanded()
+    }
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.inner.where_pose(timeout)
+    }
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        self.inner.status(timeout)
+    }
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.reset(timeout)
+    }
+}
+
+/// An [`Arm`] whose every move goes through the controller's Cartesian command: a session run
+/// over it commands poses (`MP`) instead of joints, as a compensated path on a `cartesian` rig
+/// is measured. Built [`with_joint_fallback`](Self::with_joint_fallback), a move whose `MP`
+/// solution the joint limits refuse before anything is sent (a pose within a few thousandths of
+/// a degree of a limit, rounded out of it) goes through the joint command (`MJ`) to the same
+/// joints instead, and is counted.
+#[derive(Debug)]
+pub struct CartesianArm<A> {
+    inner: A,
+    joint_fallbacks: Option<Arc<AtomicUsize>>,
+}
+
+impl<A: Arm> CartesianArm<A> {
+    /// Wraps `inner`: every move through `MP`, a refused pose an error.
+    pub fn new(inner: A) -> Self {
+        CartesianArm {
+            inner,
+            joint_fallbacks: None,
+        }
+    }
+
+    /// Wraps `inner`: every move through `MP`, a refused pose through `MJ`, counted in
+    /// `fallbacks` (shared with the caller).
+    pub fn with_joint_fallback(inner: A, fallbacks: Arc<AtomicUsize>) -> Self {
+        CartesianArm {
+            inner,
+            joint_fallbacks: Some(fallbacks),
+        }
+    }
+}
+
+impl<A: Arm> Arm for CartesianArm<A> {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.home(timeout)
+    }
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.set_speed(level, timeout)
+    }
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.move_cartesian(q, timeout)
+    }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        match (
+            self.inner.start_move_cartesian(q, timeout),
+            &self.joint_fallbacks,
+        ) {
+            (Err(DeviceError::PoseRefused { .. }), Some(n)) => {
+                n.fetch_add(1, AtomicOrdering::Relaxed);
+                self.inner.start_move(q, timeout)
+            }
+            (other, _) => other,
+        }
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.inner.wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.start_move(q, timeout)
+    }
+    fn commanded(&self) -> Option<Vec<f64>> {
+        self.inner.commanded()
+    }
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.inner.where_pose(timeout)
+    }
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        self.inner.status(timeout)
+    }
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.reset(timeout)
+    }
+}
+
+/// A [`Table`] that refuses targets outside its travel or below the pass's ascending z.
+#[derive(Debug)]
+pub struct LimitedTable<T> {
+    inner: T,
+    travel_mm: [f64; 3],
+    retract_mm: f64,
+    pass_top_z: Option<f64>,
+}
+
+impl<T: Table> LimitedTable<T> {
+    /// Wraps `inner` with travel 0..`travel_mm` per axis and the pass rule.
+    pub fn new(inner: T, travel_mm: [f64; 3], retract_mm: f64) -> Self {
+        LimitedTable {
+            inner,
+            travel_mm,
+            retract_mm,
+            pass_top_z: None,
+        }
+    }
+
+    fn check(&self, target: &[f64; 3]) -> Result<(), DeviceError> {
+        for (k, (v, t)) in target.iter().zip(self.travel_mm).enumerate() {
+            if !(v.is_finite() && (0.0..=t).contains(v)) {
+                return Err(DeviceError::Refused {
+                    device: DeviceName::Table,
+                    what: format!("axis {}", ['x', 'y', 'z'][k]),
+                    value: *v,
+                    min: 0.0,
+                    max: t,
+                    why: "table travel of the rig file",
+                });
+            }
+        }
+        if let Some(top) = self.pass_top_z {
+            let floor = top - self.retract_mm;
+            if target[2] < floor {
+                return Err(DeviceError::Refused {
+                    device: DeviceName::Table,
+                    what: "axis z".into(),
+                    value: target[2],
+                    min: floor,
+                    max: self.travel_mm[2],
+                    why: "z must ascend within a pass (start a new pass to go lower)",
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+impl<T: Table> Table for LimitedTable<T> {
+    fn enable(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.enable(timeout)
+    }
+    fn set_speed(&mut self, mm_per_s: f64, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.set_speed(mm_per_s, timeout)
+    }
+    fn start_move(&mut self, target_mm: [f64; 3], timeout: Duration) -> Result<(), DeviceError> {
+        self.check(&target_mm)?;
+        self.inner.start_move(target_mm, timeout)?;
+        self.pass_top_z = Some(
+            self.pass_top_z
+                .map_or(target_mm[2], |z| z.max(target_mm[2])),
+        );
+        Ok(())
+    }
+    fn wait_reached(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        self.inner.wait_reached(timeout)
+    }
+    fn poll_reached(
+        &mut self,
+        slice: Duration,
+        left: Duration,
+    ) -> Result<Option<[f64; 3]>, DeviceError> {
+        self.inner.poll_reached(slice, left)
+    }
+    fn supervise(&mut self) -> Result<(), DeviceError> {
+        self.inner.supervise()
+    }
+    fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        self.inner.position(timeout)
+    }
+    fn halt(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        self.inner.halt(timeout)
+    }
+    fn fault_reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.fault_reset(timeout)
+    }
+    fn latency(&self) -> Duration {
+        self.inner.latency()
+    }
+    fn begin_pass(&mut self) {
+        self.pass_top_z = None;
+        self.inner.begin_pass();
+    }
+}

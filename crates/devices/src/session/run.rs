@@ -1,0 +1,582 @@
+//! Running a session: registration, then every planned point, each row appended and flushed
+//! before the next motion, the journal committed after each point.
+//!
+//! The choreography runs on tokio: the session holds a runtime (current-thread on the virtual
+//! clock, deterministic; one worker on real time) and runs each point's procedure on it, so
+//! the public calls stay synchronous (a division's [`Measurer`](rigcal_model::division::Measurer)
+//! asks for one point at a time). The modules it is made of:
+//!
+//! - `core`: the recording, `seq`, the time base, the journal, the registration;
+//! - `motion`: the devices as futures — arm and table together, waits raced
+//!   against the drives' supervision alarm, a fault cancelling the motion in progress;
+//! - `contact` and `sensor`: the procedures per instrument,
+//!   each with its thresholds from the rig file;
+//! - `recovery`: retry, give the point up, or stop;
+//! - `registration`: the table-to-world registration step.
+//!
+//! A point the rig cannot measure, or one still failing after the last attempt, becomes a
+//! `skipped: REASON` row. Rows (conventions §6): `via` for the pre-approach and registration
+//! moves, `ok` for a measurement, `skipped: …` for a point given up. A dry run's measurement
+//! draws are keyed by (seed, seq, attempt) through the rig's hook, which the session cannot
+//! tell from the real rig's.
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use nalgebra::Vector3;
+
+use crate::devices::contact::approach_speed;
+use crate::devices::pace::Pace;
+use crate::devices::{DeviceError, OpenedRig, RigHook};
+use crate::session::contact::TableContact;
+use crate::session::core::{Outcome, SessionCore};
+use crate::session::journal::{Journal, JournalError};
+use crate::session::motion::{Motion, IO, MOVE};
+use crate::session::plan::PlannedPoint;
+use crate::session::procedure::ContactProcedure;
+use crate::session::progress::Progress;
+use crate::session::registration::registration_step;
+use crate::session::sensor::SensorProcedure;
+use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::{
+    as_recorded, RecordingError, RecordingWriter, RegistrationInfo, SessionInfo, Status,
+};
+use rigcal_core::rig::Rig;
+use rigcal_model::identification::Observation;
+
+/// The recording's file name in a session directory.
+pub const CSV_FILE: &str = "measurements.csv";
+
+/// What stopped a session.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SessionError {
+    /// A device failed in a way the session cannot clear by itself.
+    #[error("{stage}: {source}; the session stopped with every finished point saved: clear the cause, then run again with --resume")]
+    Device {
+        /// What the session was doing.
+        stage: String,
+        /// The device's error.
+        source: DeviceError,
+    },
+    /// The recording could not be written.
+    #[error(transparent)]
+    Recording(#[from] RecordingError),
+    /// The journal could not be written or read.
+    #[error(transparent)]
+    Journal(#[from] JournalError),
+    /// The registration step failed.
+    #[error("registration: {0}; check that the panel sees the pin at the registration poses")]
+    Registration(String),
+    /// `--resume` without a journal.
+    #[error("{dir}: no session journal to resume from; start a new session (without --resume)")]
+    NothingToResume {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// A new session would overwrite a recording.
+    #[error(
+        "{dir} already holds a recording; resume it with --resume or choose another directory"
+    )]
+    AlreadyExists {
+        /// The directory.
+        dir: PathBuf,
+    },
+    /// A resumed planning-mode session was asked for other joints than its recording holds.
+    #[error("point {point}: the division asks for joints {asked_deg:?}° where the recording holds {recorded_deg:?}°; resume with the same rig, scenario, seed and division options as the first run")]
+    ResumeDiverged {
+        /// 1-based point number.
+        point: usize,
+        /// Joints asked for (deg or mm).
+        asked_deg: Vec<f64>,
+        /// Joints recorded (deg or mm).
+        recorded_deg: Vec<f64>,
+    },
+    /// A resume was asked for another contact procedure than the session began with.
+    #[error("the session in {dir} began with the {journal} contact procedure; resume it with --procedure {journal} (or start a new session for {asked})")]
+    ProcedureDiffers {
+        /// The directory.
+        dir: PathBuf,
+        /// The journal's procedure.
+        journal: ContactProcedure,
+        /// The procedure asked for.
+        asked: ContactProcedure,
+    },
+    /// The session's runtime could not be started.
+    #[error("cannot start the session's runtime: {0}")]
+    Runtime(std::io::Error),
+    /// A file operation failed.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+}
+
+/// How to run a session.
+#[derive(Debug, Clone)]
+pub struct SessionOptions {
+    /// Output directory (measurements.csv, session.toml, journal.json).
+    pub dir: PathBuf,
+    /// Continue the session in `dir` from its journal.
+    pub resume: bool,
+    /// Poses of the registration step.
+    pub registration_points: usize,
+    /// Attempts per point before it is skipped.
+    pub max_attempts: u32,
+    /// First retry backoff (doubles per attempt).
+    pub backoff: Duration,
+    /// Seed of the registration poses.
+    pub seed: u64,
+    /// fsync each row and the journal (on by default; a dry run on the virtual clock may turn it
+    /// off: a killed process loses nothing that was written).
+    pub fsync: bool,
+    /// What goes into session.toml besides the registration.
+    pub info: SessionInfo,
+    /// A registration to reuse (another session's, same rig set-up) instead of the
+    /// registration step: both recordings are then in one frame.
+    pub registration: Option<RegistrationInfo>,
+    /// The contact procedure on the table-and-panel rig (kept in the journal: a resume runs
+    /// the one the session began with).
+    pub procedure: ContactProcedure,
+}
+
+impl SessionOptions {
+    /// Defaults for a directory.
+    pub fn new(dir: &Path) -> Self {
+        SessionOptions {
+            dir: dir.to_path_buf(),
+            resume: false,
+            registration_points: 12,
+            max_attempts: 3,
+            backoff: Duration::from_millis(200),
+            seed: 1,
+            fsync: true,
+            info: SessionInfo::default(),
+            registration: None,
+            procedure: ContactProcedure::Rigcal,
+        }
+    }
+}
+
+/// What a session did.
+#[derive(Debug, Clone, Default)]
+pub struct SessionReport {
+    /// Planned points.
+    pub points: usize,
+    /// Points measured by this run (including earlier runs when resumed: see `resumed_at`).
+    pub ok: usize,
+    /// Points skipped, with the full reason.
+    pub skipped: Vec<(usize, String)>,
+    /// `via` rows written.
+    pub via: usize,
+    /// Retries made.
+    pub retries: usize,
+    /// Passes begun beyond one per region run, where the travel clearance had to go lower than
+    /// the ascending-z rule allows within a pass.
+    pub extra_passes: usize,
+    /// Faults cleared (drive fault reset, arm reset).
+    pub faults_cleared: Vec<String>,
+    /// Session time at the end (s): the rig time the session took (virtual clock on a dry run).
+    pub rig_time_s: f64,
+    /// Wall time of this run.
+    pub wall: Duration,
+    /// RMS of the registration fit (mm).
+    pub registration_rms_mm: Option<f64>,
+    /// The point index this run resumed at.
+    pub resumed_at: Option<usize>,
+}
+
+/// Runs (or resumes) a session over `points` on the rig the factory opened.
+pub fn run_session(
+    rig: &Rig,
+    opened: OpenedRig,
+    points: &[PlannedPoint],
+    opts: SessionOptions,
+    progress: &Progress,
+) -> Result<SessionReport, SessionError> {
+    let mut session = Session::open(rig, opened, opts)?;
+    session.run.core.report.points = points.len();
+    let start_point = session.next_point;
+    for (i, p) in points.iter().enumerate().skip(start_point) {
+        session.measure_point(p, i + 1 == points.len())?;
+        progress.update(i + 1, points.len(), session.rig_time_s());
+    }
+    progress.finish();
+    session.finish()
+}
+
+/// An open session: the arm homed, the instrument ready, the recording open, the registration
+/// done (or restored from the journal on a resume). Points are measured one at a time — from a
+/// plan ([`run_session`]) or as a division asks for them in planning mode
+/// ([`SessionMeasurer`](crate::session::SessionMeasurer)); each point's rows are flushed and the
+/// journal committed before the next motion. Its calls block on the session's own runtime, so
+/// they must not be made from within another tokio runtime.
+pub struct Session<'a> {
+    runtime: tokio::runtime::Runtime,
+    run: Run<'a>,
+    started: Instant,
+    next_point: usize,
+}
+
+impl std::fmt::Debug for Session<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Session")
+            .field("dir", &self.run.core.opts.dir)
+            .field("next_point", &self.next_point)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The instrument's procedure.
+enum Procedure {
+    Contact(TableContact),
+    Sensor(SensorProcedure),
+}
+
+/// What a session runs on its runtime: the core, the devices, the procedure.
+struct Run<'a> {
+    core: SessionCore<'a>,
+    motion: Motion,
+    procedure: Procedure,
+}
+
+fn dev(stage: impl Into<String>) -> impl FnOnce(DeviceError) -> SessionError {
+    let stage = stage.into();
+    move |source| SessionError::Device { stage, source }
+}
+
+impl<'a> Session<'a> {
+    /// Opens (or, with `opts.resume`, resumes) a session on the rig the factory opened.
+    pub fn open(
+        rig: &'a Rig,
+        opened: OpenedRig,
+        opts: SessionOptions,
+    ) -> Result<Self, SessionError> {
+        let started = Instant::now();
+        let OpenedRig { devices, hook } = opened;
+        let runtime = Pace::new(std::sync::Arc::clone(&devices.clock))
+            .runtime()
+            .map_err(SessionError::Runtime)?;
+        let motion = Motion::new(devices).map_err(dev("starting the devices"))?;
+        let (run, next_point) = runtime.block_on(Run::open(rig, motion, hook, opts))?;
+        Ok(Session {
+            runtime,
+            run,
+            started,
+            next_point,
+        })
+    }
+
+    /// Points finished so far (including earlier runs of a resumed session).
+    pub fn points_done(&self) -> usize {
+        self.next_point
+    }
+
+    /// Where the table goes for `q` (mm, table frame) through the session's registration;
+    /// `None` before a registration or on a point-sensor rig.
+    pub fn table_target(&self, q: &[f64]) -> Option<[f64; 3]> {
+        self.run.core.registered_table_target(q)
+    }
+
+    /// Session time now (s): the rig time so far.
+    pub fn rig_time_s(&self) -> f64 {
+        self.run.core.now_s()
+    }
+
+    /// Measures `p` (or writes why it cannot be), then commits the journal; `last` marks the
+    /// session finished in it. Returns the joints the arm was commanded to (after the
+    /// controller's resolution) with the measured position (world, mm); `None` for a skip.
+    pub fn measure_point(
+        &mut self,
+        p: &PlannedPoint,
+        last: bool,
+    ) -> Result<Option<Observation>, SessionError> {
+        let measured = self.runtime.block_on(async {
+            let measured = self.run.point(p).await?;
+            self.run.where_the_devices_stand().await?;
+            Ok::<_, SessionError>(measured)
+        })?;
+        self.next_point += 1;
+        let core = &mut self.run.core;
+        core.report.points = core.report.points.max(self.next_point);
+        core.commit(self.next_point, last)?;
+        Ok(measured)
+    }
+
+    /// Ends the session: the journal marked finished, the report with the rig and wall time.
+    pub fn finish(mut self) -> Result<SessionReport, SessionError> {
+        let core = &mut self.run.core;
+        core.commit(self.next_point, true)?;
+        core.report.rig_time_s = core.now_s();
+        core.report.wall = self.started.elapsed();
+        Ok(std::mem::take(&mut core.report))
+    }
+}
+
+impl<'a> Run<'a> {
+    /// Brings the rig up (arm homed, table enabled and supervised), opens the recording, and
+    /// registers — or takes everything back from the journal on a resume. Also returns the
+    /// next point.
+    async fn open(
+        rig: &'a Rig,
+        mut motion: Motion,
+        hook: Box<dyn RigHook>,
+        opts: SessionOptions,
+    ) -> Result<(Run<'a>, usize), SessionError> {
+        let dir = opts.dir.clone();
+        std::fs::create_dir_all(&dir).map_err(|source| SessionError::Io {
+            path: dir.clone(),
+            source,
+        })?;
+        let csv = dir.join(CSV_FILE);
+        let cfg = crate::config::DevicesConfig::read(&rig);
+        motion
+            .arm
+            .run(MOVE, |a| a.home(MOVE))
+            .await
+            .map_err(dev("homing the arm"))?;
+        let level = cfg.arm.speed;
+        motion
+            .arm
+            .run(IO, move |a| a.set_speed(level, IO))
+            .await
+            .map_err(dev("setting the arm speed"))?;
+        let procedure = if motion.has_table() {
+            let approach_mm_s = Self::bring_up_table(&mut motion, &cfg).await?;
+            Procedure::Contact(TableContact::new(rig, approach_mm_s, opts.procedure))
+        } else {
+            Procedure::Sensor(SensorProcedure::new(rig))
+        };
+        let journal = if opts.resume {
+            match Journal::load(&dir) {
+                Ok(j) => Some(j),
+                Err(JournalError::Io { source, .. })
+                    if source.kind() == std::io::ErrorKind::NotFound =>
+                {
+                    return Err(SessionError::NothingToResume { dir });
+                }
+                Err(e) => return Err(e.into()),
+            }
+        } else {
+            if csv.exists() {
+                return Err(SessionError::AlreadyExists { dir });
+            }
+            None
+        };
+        if let (Some(j), Procedure::Contact(_)) = (&journal, &procedure) {
+            if j.procedure != opts.procedure {
+                return Err(SessionError::ProcedureDiffers {
+                    dir,
+                    journal: j.procedure,
+                    asked: opts.procedure,
+                });
+            }
+        }
+        let writer = open_recording(rig, &csv, journal.as_ref(), opts.fsync)?;
+        let clock = std::sync::Arc::clone(motion.pace.clock());
+        let resume = opts.resume;
+        let mut core = SessionCore::new(rig, opts, hook, clock, writer, csv);
+        core.arm_q = motion
+            .arm
+            .call(IO, |a| a.commanded())
+            .await
+            .map_err(dev("reading the arm"))?;
+        let mut run = Run {
+            core,
+            motion,
+            procedure,
+        };
+        let next_point = match journal {
+            Some(j) => run.resume_from(&j).await?,
+            None => {
+                run.core.start_time();
+                run.core.commit(0, false)?;
+                run.register().await?;
+                run.core.commit(0, false)?;
+                0
+            }
+        };
+        if next_point > 0 || resume {
+            run.core.report.resumed_at = Some(next_point);
+            run.core.report.points = next_point;
+        }
+        Ok((run, next_point))
+    }
+
+    /// Enables the table, starts supervising its drives, and returns the final approach's
+    /// speed from the latency rule.
+    async fn bring_up_table(
+        motion: &mut Motion,
+        cfg: &crate::config::DevicesConfig,
+    ) -> Result<f64, SessionError> {
+        let table = motion.table().map_err(dev("enabling the table"))?;
+        table
+            .run(IO * 5, |t| t.enable(IO * 5))
+            .await
+            .map_err(dev("enabling the table"))?;
+        let table_latency = table.call(IO, |t| t.latency()).await;
+        let panel = motion.panel().map_err(dev("reading the panel"))?;
+        let panel_latency = panel.call(IO, |p| p.latency()).await;
+        let (Ok(table_latency), Ok(panel_latency)) = (table_latency, panel_latency) else {
+            return Err(SessionError::Device {
+                stage: "reading the devices' latencies".into(),
+                source: DeviceError::NotReady {
+                    device: crate::devices::DeviceName::Table,
+                    detail: "a device thread stopped".into(),
+                },
+            });
+        };
+        motion.supervise(Duration::from_millis(u64::from(cfg.table.heartbeat_ms)));
+        Ok(approach_speed(
+            panel_latency,
+            table_latency,
+            cfg.panel.max_overshoot_mm,
+        ))
+    }
+
+    /// The registration step with the instrument's procedure.
+    async fn register(&mut self) -> Result<(), SessionError> {
+        let contact = match &mut self.procedure {
+            Procedure::Contact(c) => Some(c),
+            Procedure::Sensor(_) => None,
+        };
+        registration_step(&mut self.core, &self.motion, contact).await
+    }
+
+    /// Takes the session back to where its journal left it; the next point.
+    async fn resume_from(&mut self, j: &Journal) -> Result<usize, SessionError> {
+        if let Some(q) = &j.arm_q {
+            let q = self
+                .motion
+                .arm_to(q)
+                .await
+                .map_err(dev("moving the arm back to its last pose"))?;
+            self.core.arm_q = Some(q);
+        }
+        if let (Some(t), Procedure::Contact(c)) = (j.table_mm, &mut self.procedure) {
+            c.table_back(&mut self.core, &self.motion, t)
+                .await
+                .map_err(dev("moving the table back"))?;
+        }
+        self.core.restore(j)?;
+        match &j.registration {
+            Some(info) => {
+                let pose = rigcal_core::rig::pose_from_xyz_rpy(info.translation_mm, info.rpy_deg);
+                self.core.register(pose, Some(*info));
+            }
+            None => {
+                // Killed during the registration step, or a point-sensor rig (none to do): the
+                // journal keeps the point reached, never rewinds it.
+                self.register().await?;
+                self.core.commit(j.next_point, false)?;
+            }
+        }
+        Ok(j.next_point)
+    }
+
+    /// Makes sure the core knows where arm and table stand before the journal is committed: a
+    /// point given up after a failed or refused move leaves the table's position unknown (and
+    /// the arm where an abandoned move took it), and a resume must take both back to where the
+    /// uninterrupted session had them, or its next moves (and their times) differ.
+    async fn where_the_devices_stand(&mut self) -> Result<(), SessionError> {
+        let q = self
+            .motion
+            .arm
+            .call(IO, |a| a.commanded())
+            .await
+            .map_err(dev("reading the arm"))?;
+        if q.is_some() {
+            self.core.arm_q = q;
+        }
+        if self.core.table_at.is_none() && self.motion.has_table() {
+            let table = self.motion.table().map_err(dev("reading the table"))?;
+            let at = table
+                .run(IO, |t| t.position(IO))
+                .await
+                .map_err(dev("reading the table's position"))?;
+            self.core.table_at = Some(at);
+        }
+        Ok(())
+    }
+
+    /// Measures one point and writes its rows; the commanded joints and measured position.
+    async fn point(&mut self, p: &PlannedPoint) -> Result<Option<Observation>, SessionError> {
+        let core = &mut self.core;
+        if let Err(reason) = core.rig.measurable(&p.q) {
+            let m = core.row(p.q.clone(), &p.region, Status::Skipped(reason.to_string()));
+            core.report.skipped.push((p.point, reason.to_string()));
+            core.write(m)?;
+            return Ok(None);
+        }
+        let (q, out) = match &mut self.procedure {
+            Procedure::Contact(c) => {
+                let target = core.registered_table_target(&p.q).unwrap_or(p.table_mm);
+                c.measure(core, &self.motion, p.point, &p.region, &p.q, target)
+                    .await?
+            }
+            Procedure::Sensor(s) => {
+                s.measure(core, &self.motion, p.point, &p.region, &p.q)
+                    .await?
+            }
+        };
+        let m = match out {
+            Outcome::Seen(reading) => {
+                let mut m = core.row(q, &p.region, Status::Ok);
+                m.position = Some(Vector3::from(reading));
+                m
+            }
+            Outcome::Measured(c) => {
+                let t = Vector3::from(c.point_table_mm());
+                let mut m = core.row(q, &p.region, Status::Ok);
+                m.table = Some(t);
+                m.panel_uv = Some([c.touch.u_mm, c.touch.v_mm]);
+                let world = core.registration.world_from_instrument;
+                m.position = Some((world * nalgebra::Point3::from(t)).coords);
+                m
+            }
+            Outcome::Skipped(reason) => {
+                let m = core.row(q, &p.region, Status::Skipped(reason.clone()));
+                core.report.skipped.push((p.point, reason));
+                m
+            }
+        };
+        // As a reader of the recording will see it, so that a resumed planning-mode session
+        // replays exactly what its first run measured.
+        let (q_file, p_file) = as_recorded(&m, core.rig.chain.joints());
+        let measured = p_file.map(|p| Observation { q: q_file, p });
+        if measured.is_some() {
+            core.report.ok += 1;
+        }
+        core.write(m)?;
+        Ok(measured)
+    }
+}
+
+/// The recording: created, or (on a resume) cut back to the journal's length and appended to.
+fn open_recording(
+    rig: &Rig,
+    csv: &Path,
+    journal: Option<&Journal>,
+    fsync: bool,
+) -> Result<RecordingWriter, SessionError> {
+    let joints = rig.chain.joints();
+    let io = |source| SessionError::Io {
+        path: csv.to_path_buf(),
+        source,
+    };
+    let writer = match journal {
+        Some(j) => {
+            let f = std::fs::OpenOptions::new()
+                .write(true)
+                .open(csv)
+                .map_err(io)?;
+            f.set_len(j.csv_bytes).map_err(io)?;
+            RecordingWriter::open_append(csv, joints, &[])?.0
+        }
+        None => RecordingWriter::create(csv, joints, &[])?,
+    };
+    Ok(writer.sync_each_row(fsync))
+}

@@ -1,0 +1,324 @@
+//! The regression algebra of the diagnosis tests, on stacked residuals (3 rows per measurement,
+//! mm): orthonormal bases and projections, a candidate's part the model cannot already show, the
+//! partial F-test of adding it, column-scaled least squares, row selection and weighting.
+
+use super::MIN_VISIBLE;
+use nalgebra::{DMatrix, DVector};
+use rigcal_core::stats::{f_sf, ln_f_sf};
+
+/// An orthonormal basis of the column space of `m` (columns scaled to unit norm first; singular
+/// values below `tol` dropped).
+pub fn orth_basis(m: &DMatrix<f64>, tol: f64) -> DMatrix<f64> {
+    if m.ncols() == 0 {
+        return DMatrix::zeros(m.nrows(), 0);
+    }
+    let mut s = m.clone();
+    for mut c in s.column_iter_mut() {
+        let n = c.norm();
+        if n > 0.0 {
+            c /= n;
+        }
+    }
+    let svd = s.svd(true, false);
+    let Some(u) = svd.u else {
+        return DMatrix::zeros(m.nrows(), 0);
+    };
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > tol)
+        .collect();
+    DMatrix::from_fn(m.nrows(), keep.len(), |r, c| u[(r, keep[c])])
+}
+
+/// `x` with the column space of the orthonormal `q` removed (twice, for accuracy).
+pub fn project_out(q: &DMatrix<f64>, x: &DMatrix<f64>) -> DMatrix<f64> {
+    if q.ncols() == 0 {
+        return x.clone();
+    }
+    let once = x - q * (q.transpose() * x);
+    &once - q * (q.transpose() * &once)
+}
+
+/// A candidate's visible part after projecting out `q`: an orthonormal basis and the visible
+/// fraction ‖(I − QQᵀ)X‖ / ‖X‖ (Frobenius, columns scaled to unit norm), or None when the
+/// candidate is numerically absorbed or empty.
+pub fn visible_basis(q: &DMatrix<f64>, x: &DMatrix<f64>) -> Option<(DMatrix<f64>, f64)> {
+    let mut cols = Vec::new();
+    let mut vis2 = 0.0;
+    let xp = project_out(q, x);
+    for c in 0..x.ncols() {
+        let n = x.column(c).norm();
+        if n <= 1e-12 * (x.nrows() as f64).sqrt() {
+            continue;
+        }
+        let v = xp.column(c).norm() / n;
+        vis2 += v * v;
+        if v >= MIN_VISIBLE {
+            cols.push(xp.column(c) / n);
+        }
+    }
+    if cols.is_empty() {
+        return None;
+    }
+    let visible = (vis2 / x.ncols() as f64).sqrt();
+    let m = DMatrix::from_columns(&cols);
+    let u = orth_basis(&m, 0.1 * MIN_VISIBLE);
+    (u.ncols() > 0).then_some((u, visible))
+}
+
+/// Partial F-test of adding the orthonormal `u` (already orthogonal to the model) to a model
+/// with residual `r` and `dof` residual degrees of freedom: (p-value, ΔSS).
+pub fn partial_f(u: &DMatrix<f64>, r: &DVector<f64>, dof: usize) -> (f64, f64) {
+    let k = u.ncols();
+    if k == 0 || dof <= k {
+        return (1.0, 0.0);
+    }
+    let rss = r.norm_squared();
+    let dss = (u.transpose() * r).norm_squared().min(rss);
+    let d2 = (dof - k) as f64;
+    let f = (dss / k as f64) / ((rss - dss).max(1e-300) / d2);
+    (f_sf(f, k as f64, d2), dss)
+}
+
+/// [`partial_f`] with the log of the p-value too, exact where the p-value underflows:
+/// (p, ln p, ΔSS). Terms are ranked by ln p, so a 10× effect and its rivals do not all tie at 0.
+pub fn partial_f_ln(u: &DMatrix<f64>, r: &DVector<f64>, dof: usize) -> (f64, f64, f64) {
+    let k = u.ncols();
+    if k == 0 || dof <= k {
+        return (1.0, 0.0, 0.0);
+    }
+    let rss = r.norm_squared();
+    let dss = (u.transpose() * r).norm_squared().min(rss);
+    let d2 = (dof - k) as f64;
+    let f = (dss / k as f64) / ((rss - dss).max(1e-300) / d2);
+    (f_sf(f, k as f64, d2), ln_f_sf(f, k as f64, d2), dss)
+}
+
+/// A least-squares solution with what the tests need of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LeastSquares {
+    /// The solution x minimising ‖A x − b‖.
+    pub solution: DVector<f64>,
+    /// (AᵀA)⁺: times the residual variance, the covariance of the solution.
+    pub normal_inverse: DMatrix<f64>,
+    /// Numerical rank of A (singular values of the column-scaled A above 1e-10 of the largest).
+    pub rank: usize,
+}
+
+/// Least squares with column scaling and an SVD pseudo-inverse (directions A cannot see get no
+/// weight, so nearly absorbed candidates do not blow up the solution).
+pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
+    let p = a.ncols();
+    let failed = |p: usize| LeastSquares {
+        solution: DVector::zeros(p),
+        normal_inverse: DMatrix::zeros(p, p),
+        rank: 0,
+    };
+    if p == 0 {
+        return failed(0);
+    }
+    let d: Vec<f64> = (0..p).map(|c| a.column(c).norm().max(1e-300)).collect();
+    let mut s = a.clone();
+    for (c, dc) in d.iter().enumerate() {
+        s.column_mut(c).scale_mut(1.0 / dc);
+    }
+    let svd = s.svd(true, true);
+    let smax = svd.singular_values.max();
+    let tol = smax * 1e-10;
+    let rank = svd.singular_values.iter().filter(|&&v| v > tol).count();
+    let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
+        return failed(p);
+    };
+    let mut x = DVector::zeros(p);
+    let mut cov = DMatrix::zeros(p, p);
+    for k in 0..svd.singular_values.len() {
+        let sv = svd.singular_values[k];
+        if sv <= tol {
+            continue;
+        }
+        let v = vt.row(k).transpose();
+        x += &v * (u.column(k).dot(b) / sv);
+        cov += &v * v.transpose() / (sv * sv);
+    }
+    for i in 0..p {
+        x[i] /= d[i];
+        for j in 0..p {
+            cov[(i, j)] /= d[i] * d[j];
+        }
+    }
+    LeastSquares {
+        solution: x,
+        normal_inverse: cov,
+        rank,
+    }
+}
+
+/// The rows of measurements `idx` from a stacked matrix.
+pub fn rows_of(m: &DMatrix<f64>, idx: &[usize]) -> DMatrix<f64> {
+    DMatrix::from_fn(3 * idx.len(), m.ncols(), |r, c| {
+        m[(3 * idx[r / 3] + r % 3, c)]
+    })
+}
+
+/// 3-D RMS (mm) of a stacked residual.
+pub fn rms3(r: &DVector<f64>) -> f64 {
+    let m = (r.len() / 3).max(1) as f64;
+    (r.norm_squared() / m).sqrt()
+}
+
+/// The rows of measurements `idx` from a stacked vector.
+pub fn rows_of_vector(v: &DVector<f64>, idx: &[usize]) -> DVector<f64> {
+    DVector::from_fn(3 * idx.len(), |r, _| v[3 * idx[r / 3] + r % 3])
+}
+
+/// `m` with row r scaled by `w[r]` (rows of weight 1 untouched).
+pub fn scale_rows(m: &DMatrix<f64>, w: &[f64]) -> DMatrix<f64> {
+    let mut out = m.clone();
+    for (r, wr) in w.iter().enumerate() {
+        if *wr != 1.0 {
+            out.row_mut(r).scale_mut(*wr);
+        }
+    }
+    out
+}
+
+/// The blocks side by side (an `nrows` × 0 matrix when there are no columns).
+pub fn hcat(blocks: &[DMatrix<f64>], nrows: usize) -> DMatrix<f64> {
+    let cols: Vec<_> = blocks.iter().flat_map(|b| b.column_iter()).collect();
+    if cols.is_empty() {
+        return DMatrix::zeros(nrows, 0);
+    }
+    DMatrix::from_columns(&cols)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn close(got: f64, want: f64, tol: f64) {
+        assert!((got - want).abs() <= tol, "got {got}, want {want}");
+    }
+
+    /// A 9 × 3 matrix of full column rank (3 measurements).
+    fn tall() -> DMatrix<f64> {
+        DMatrix::from_fn(9, 3, |r, c| {
+            ((r * 7 + c * 3) % 5) as f64 - 2.0 + (r * c) as f64 * 0.1
+        })
+    }
+
+    #[test]
+    fn orth_basis_is_orthonormal_and_drops_dependent_columns() {
+        let a = tall();
+        // A fourth column that is a combination of the first two adds no direction.
+        let dependent = a.column(0) * 2.0 - a.column(1) * 0.5;
+        let m = hcat(
+            &[
+                a.clone(),
+                DMatrix::from_column_slice(9, 1, dependent.as_slice()),
+            ],
+            9,
+        );
+        let q = orth_basis(&m, 1e-9);
+        assert_eq!(q.ncols(), 3);
+        assert!((q.transpose() * &q - DMatrix::identity(3, 3)).norm() < 1e-12);
+        // It spans A: projecting A out leaves nothing.
+        assert!(project_out(&q, &a).norm() < 1e-12);
+        assert_eq!(orth_basis(&DMatrix::zeros(9, 0), 1e-9).ncols(), 0);
+    }
+
+    #[test]
+    fn project_out_leaves_the_orthogonal_part() {
+        let q = orth_basis(&tall(), 1e-9);
+        let x = DMatrix::from_fn(9, 2, |r, c| (r as f64 - 4.0).powi(2) + c as f64);
+        let p = project_out(&q, &x);
+        assert!((q.transpose() * &p).norm() < 1e-12);
+        // x = its part in span(q) + p, and the two parts are orthogonal (Pythagoras).
+        let inside = &x - &p;
+        close(
+            x.norm_squared(),
+            inside.norm_squared() + p.norm_squared(),
+            1e-10,
+        );
+        assert_eq!(project_out(&DMatrix::zeros(9, 0), &x), x);
+    }
+
+    #[test]
+    fn visible_basis_measures_what_the_model_cannot_show() {
+        let a = tall();
+        let q = orth_basis(&a, 1e-9);
+        // A column inside the model is absorbed.
+        let inside = DMatrix::from_column_slice(9, 1, (a.column(0) + a.column(2)).as_slice());
+        assert!(visible_basis(&q, &inside).is_none());
+        // A unit column at 45° to the model: visible fraction 1/√2.
+        let u0 = q.column(0).into_owned();
+        let mut e = DVector::zeros(9);
+        e[4] = 1.0;
+        let perp = &e - &q * (q.transpose() * &e);
+        let perp = &perp / perp.norm();
+        let x = DMatrix::from_column_slice(9, 1, (&u0 + &perp).as_slice());
+        let (u, visible) = visible_basis(&q, &x).expect("visible");
+        close(visible, 0.5f64.sqrt(), 1e-12);
+        assert_eq!(u.ncols(), 1);
+        close(u.column(0).dot(&perp).abs(), 1.0, 1e-12);
+    }
+
+    #[test]
+    fn partial_f_is_the_f_test_of_the_added_columns() {
+        // 40 rows, residual dof 30, one added direction u = e0 carrying ΔSS = 4 of RSS = 10.
+        let mut u = DMatrix::zeros(40, 1);
+        u[(0, 0)] = 1.0;
+        let mut r = DVector::from_element(40, (6.0f64 / 39.0).sqrt());
+        r[0] = 2.0;
+        let (p, dss) = partial_f(&u, &r, 30);
+        close(dss, 4.0, 1e-12);
+        // F = (4/1) / (6/29) on (1, 29) degrees of freedom.
+        close(p, f_sf(4.0 / (6.0 / 29.0), 1.0, 29.0), 1e-15);
+        assert!(p < 1e-3);
+        assert_eq!(partial_f(&u, &r, 1), (1.0, 0.0));
+        assert_eq!(partial_f(&DMatrix::zeros(40, 0), &r, 30), (1.0, 0.0));
+    }
+
+    #[test]
+    fn lstsq_solves_full_rank_systems_and_reports_rank() {
+        let a = tall();
+        let x_true = DVector::from_vec(vec![1.5, -2.0, 0.25]);
+        let fit = lstsq(&a, &(&a * &x_true));
+        assert_eq!(fit.rank, 3);
+        assert!((&fit.solution - &x_true).norm() < 1e-10);
+        // (AᵀA)⁺ is the inverse for a full-rank A.
+        let ata = a.transpose() * &a;
+        assert!((&ata * &fit.normal_inverse - DMatrix::identity(3, 3)).norm() < 1e-9);
+        // A repeated column: rank 1, and the minimum-norm solution splits the weight evenly.
+        let twice = hcat(
+            &[a.columns(0, 1).into_owned(), a.columns(0, 1).into_owned()],
+            9,
+        );
+        let fit = lstsq(&twice, &(a.column(0) * 2.0));
+        assert_eq!(fit.rank, 1);
+        assert!((fit.solution[0] - 1.0).abs() < 1e-10 && (fit.solution[1] - 1.0).abs() < 1e-10);
+        assert_eq!(lstsq(&DMatrix::zeros(9, 0), &DVector::zeros(9)).rank, 0);
+    }
+
+    #[test]
+    fn rows_of_pick_whole_measurements_and_rms3_is_per_measurement() {
+        let m = DMatrix::from_fn(9, 2, |r, c| (10 * r + c) as f64);
+        let picked = rows_of(&m, &[2, 0]);
+        assert_eq!(picked.nrows(), 6);
+        assert_eq!(picked[(0, 1)], 61.0);
+        assert_eq!(picked[(3, 0)], 0.0);
+        let v = DVector::from_fn(9, |r, _| r as f64);
+        assert_eq!(rows_of_vector(&v, &[1]).as_slice(), &[3.0, 4.0, 5.0]);
+        // Two measurements of 3-D length 3 and 4: RMS √((9 + 16)/2).
+        let r = DVector::from_vec(vec![3.0, 0.0, 0.0, 0.0, 0.0, 4.0]);
+        close(rms3(&r), 12.5f64.sqrt(), 1e-15);
+    }
+
+    #[test]
+    fn scale_rows_weights_each_row() {
+        let m = DMatrix::from_element(3, 2, 2.0);
+        let w = scale_rows(&m, &[1.0, 0.5, 3.0]);
+        assert_eq!(w.row(0).iter().copied().collect::<Vec<_>>(), vec![2.0, 2.0]);
+        assert_eq!(w[(1, 1)], 1.0);
+        assert_eq!(w[(2, 0)], 6.0);
+        assert_eq!(hcat(&[], 6).shape(), (6, 0));
+    }
+}
