@@ -14,8 +14,7 @@ use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
 use rigcal_model::compensation::{compensate, CompensationOptions, Compensator};
 use rigcal_model::identification::{
-    analyse, candidate_order, fit, identify, random_poses, FitOptions, IdentifyOptions, Level,
-    Observation,
+    analyse, candidate_order, fit, identify, random_poses, FitOptions, Level, Observation,
 };
 use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
@@ -58,7 +57,13 @@ fn identification(c: &mut Criterion) {
         "identify at level full from a 2200-row recording (outlier search included)",
         |b| {
             b.iter(|| {
-                identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify")
+                identify(
+                    &rig,
+                    &rec,
+                    Level::Full,
+                    &rigcal_model::diagnosis::outliers::identify_options(),
+                )
+                .expect("identify")
             })
         },
     );
@@ -84,7 +89,13 @@ fn identification(c: &mut Criterion) {
 fn identify_to_model_file(rig: &Rig, rec_dir: &Path, out: &Path) -> usize {
     use rigcal_model::model::{ModelFile, Provenance};
     let rec = Recording::read(rec_dir, rig.chain.joints()).expect("read the recording");
-    let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let id = identify(
+        rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
     let mut file = ModelFile::constant(
         rig,
         &id.fit,

@@ -47,7 +47,7 @@ fn figures(model: &ModelFile, path: PathChoice) -> PathFigures {
     model.save(&file).unwrap();
     let loaded = ModelFile::load(&file).unwrap();
     let paths = calibration::build_paths(&loaded.rig, &[path], &PathOptions::default()).unwrap();
-    let names = calibration::PAPER_TRACED_CEPS.map(String::from);
+    let names = rigcal_paper::preset::SEED_000.traced_ceps();
     let trace = calibration::traced_ceps(&loaded.rig, &names).unwrap();
     let results = calibration::evaluate(&loaded, &file, &sc, &paths, &trace).unwrap();
     PathFigures::of(&loaded, &paths[0], &results[0], &trace)

@@ -9,13 +9,13 @@ use std::time::{Duration, Instant};
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::rig::{Instrument, Rig};
 use rigcal_devices::config::DevicesConfig;
-use rigcal_devices::devices::arm_movemaster::MovemasterArm;
 use rigcal_devices::devices::clock::RealClock;
-use rigcal_devices::devices::emulators::table::InjectedFault;
+use rigcal_devices::devices::drivers::canopen::CanOpenTable;
+use rigcal_devices::devices::drivers::movemaster::MovemasterArm;
+use rigcal_devices::devices::drivers::penmount::PenMountPanel;
+use rigcal_devices::devices::emulators::faults::InjectedFault;
 use rigcal_devices::devices::emulators::{serve_bytes, Profile, SlcanAdapter};
 use rigcal_devices::devices::factory::{sim_emulators, SimSetup};
-use rigcal_devices::devices::panel_penmount::PenMountPanel;
-use rigcal_devices::devices::table_canopen::CanOpenTable;
 use rigcal_devices::devices::{Arm, DeviceError, DeviceErrorKind, Panel, Table};
 use rigcal_devices::transports::{SerialTransport, SlcanBus, SlcanBusConfig};
 use serialport::TTYPort;
@@ -60,9 +60,9 @@ fn arm_over_a_pseudo_terminal_homes_moves_reads_back_and_recovers_from_error_mod
     let _g = pty_lock();
     let (rig, cfg, s) = setup();
     let emus = sim_emulators(&rig, &cfg, &s).unwrap();
-    let faults = emus.arm.faults();
+    let faults = emus.arm.faults.clone();
     let (device_end, host_end) = pty_pair();
-    let _served = serve_bytes(emus.arm, device_end, s.clock.clone());
+    let _served = serve_bytes(emus.arm.emulator, device_end, s.clock.clone());
     let mut arm =
         MovemasterArm::new(host_end, rig.chain.clone(), &cfg.arm, s.clock.clone()).unwrap();
 
@@ -117,11 +117,11 @@ fn panel_over_a_pseudo_terminal_reports_touches_drops_garbage_and_times_out_on_a
         .chain
         .position(&q, &ErrorParams::zeros(rig.chain.layout()));
     let emus = sim_emulators(&rig, &cfg, &s).unwrap();
-    let faults = emus.panel.faults();
+    let faults = emus.panel.faults.clone();
     let truth = Arc::clone(&emus.table_truth);
     let table_at_tip = tip - tp.table_to_world_mm;
     let (device_end, host_end) = pty_pair();
-    let _served = serve_bytes(emus.panel, device_end, s.clock.clone());
+    let _served = serve_bytes(emus.panel.emulator, device_end, s.clock.clone());
     let mut panel = PenMountPanel::new(
         host_end,
         tp.panel_size_mm,
@@ -171,9 +171,13 @@ fn table_over_slcan_on_a_pseudo_terminal_moves_faults_and_resets() {
     let _g = pty_lock();
     let (rig, cfg, s) = setup();
     let emus = sim_emulators(&rig, &cfg, &s).unwrap();
-    let faults = emus.table.faults();
+    let faults = emus.table.faults.clone();
     let (device_end, host_end) = pty_pair();
-    let _served = serve_bytes(SlcanAdapter::new(emus.table), device_end, s.clock.clone());
+    let _served = serve_bytes(
+        SlcanAdapter::new(emus.table.emulator),
+        device_end,
+        s.clock.clone(),
+    );
     let bus = SlcanBus::open(host_end, SlcanBusConfig::default()).unwrap();
     let mut table = CanOpenTable::new(bus, &cfg.table, s.clock.clone()).unwrap();
 

@@ -8,7 +8,7 @@ use std::time::Duration;
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::rig::{Instrument, Rig};
 use rigcal_devices::devices::contact::{approach_speed, measure_contact};
-use rigcal_devices::devices::emulators::table::InjectedFault;
+use rigcal_devices::devices::emulators::faults::InjectedFault;
 use rigcal_devices::devices::{
     open_devices, Backend, DeviceError, DeviceErrorKind, RigDevices, SimSetup,
 };
@@ -497,11 +497,11 @@ fn the_rig_file_backend_opens_the_simulated_devices_it_names() {
 
 #[test]
 fn threaded_emulators_serve_canopen_over_the_simulated_bus_and_movemaster_over_a_pipe() {
-    use rigcal_devices::devices::arm_movemaster::MovemasterArm;
     use rigcal_devices::devices::clock::RealClock;
+    use rigcal_devices::devices::drivers::canopen::CanOpenTable;
+    use rigcal_devices::devices::drivers::movemaster::MovemasterArm;
     use rigcal_devices::devices::emulators::{serve_bytes, serve_frames};
     use rigcal_devices::devices::factory::sim_emulators;
-    use rigcal_devices::devices::table_canopen::CanOpenTable;
     use rigcal_devices::devices::{Arm, Table};
     use rigcal_devices::transports::{PipeTransport, SimBus};
     let rig = rig();
@@ -514,9 +514,9 @@ fn threaded_emulators_serve_canopen_over_the_simulated_bus_and_movemaster_over_a
     s.clock = RealClock::shared();
     let emus = sim_emulators(&rig, &cfg, &s).unwrap();
     let bus = SimBus::new();
-    let _table = serve_frames(emus.table, bus.endpoint(), s.clock.clone());
+    let _table = serve_frames(emus.table.emulator, bus.endpoint(), s.clock.clone());
     let (a, b) = PipeTransport::pair();
-    let _arm = serve_bytes(emus.arm, a, s.clock.clone());
+    let _arm = serve_bytes(emus.arm.emulator, a, s.clock.clone());
     let mut table = CanOpenTable::new(bus.endpoint(), &cfg.table, s.clock.clone()).unwrap();
     table.enable(T).unwrap();
     table.start_move([300.0, 200.0, 5.0], T).unwrap();
@@ -563,7 +563,7 @@ fn waiting_for_the_table_times_out_with_target_and_position() {
 
 #[test]
 fn cartesian_moves_send_mp_and_land_within_the_command_rounding() {
-    use rigcal_devices::devices::controller::ControllerKinematics;
+    use rigcal_devices::devices::drivers::movemaster::ControllerKinematics;
     let rig = rig();
     let mut d = devices(&rig);
     let sim = d.sim.clone().unwrap();

@@ -16,6 +16,7 @@ use rand::{RngExt, SeedableRng};
 use rigcal_core::kinematics::{ErrorParams, Robot, TransformId};
 use rigcal_core::recording::Recording;
 use rigcal_core::rig::{Instrument, Rig};
+use rigcal_model::effects::EffectKind;
 use rigcal_model::identification::{analyse, candidate_order, random_poses};
 use rigcal_sim::world::{Backlash, Effect, MeasurementSettings, World};
 use std::path::Path;
@@ -348,7 +349,7 @@ fn tracker_rates() {
         )
         .expect("diagnose");
         let ok = r.effects.len() == 1
-            && r.effects[0].kind == "backlash"
+            && r.effects[0].kind == EffectKind::Backlash
             && r.effects[0].joint == Some(6)
             && !r.unexplained;
         if ok {

@@ -14,8 +14,8 @@ use rigcal_core::recording::Recording;
 use rigcal_core::rig::{FrameMode, Rig};
 use rigcal_model::identification::outliers::{remove_outliers, OutlierSettings};
 use rigcal_model::identification::{
-    analyse, candidate_order, errors, fit, identify, random_poses, FitOptions, FitResult,
-    IdentifyOptions, Level, Observation, Prior, ResidualStats,
+    analyse, candidate_order, errors, fit, identify, random_poses, FitOptions, FitResult, Level,
+    Observation, Prior, ResidualStats,
 };
 use rigcal_sim::world::{paper_geometric_errors, World};
 use std::path::Path;
@@ -207,7 +207,13 @@ fn identify_with_outliers_equals_refitting_from_scratch() {
         (2100, 0.5),
     ];
     let rec = recording_with_outliers(&rig, &planted);
-    let fast = identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let fast = identify(
+        &rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
 
     // The search as it ran before: every refit analyses and fits the kept rows from nominal.
     let obs = rec.observations();

@@ -179,7 +179,7 @@ fn started_and_absolute_frames_predict_the_same_points() {
 #[test]
 fn each_level_fits_its_own_parameters() {
     use rigcal_core::kinematics::{ParamKind, TransformId};
-    use rigcal_model::identification::{identify, IdentifyOptions, Level};
+    use rigcal_model::identification::{identify, Level};
     let dir = tempfile::tempdir().unwrap();
     let (rig, rec) = tracker_recording(dir.path());
     let layout = rig.chain.layout();
@@ -206,7 +206,13 @@ fn each_level_fits_its_own_parameters() {
         .all(|(t, k)| !matches!(t, TransformId::Link(_)) || *k == ParamKind::Theta));
     let mut rms = Vec::new();
     for level in [Level::Frames, Level::Offsets, Level::Full] {
-        let id = identify(&rig, &rec, level, &IdentifyOptions::default()).unwrap();
+        let id = identify(
+            &rig,
+            &rec,
+            level,
+            &rigcal_model::diagnosis::outliers::identify_options(),
+        )
+        .unwrap();
         rms.push(id.fit.after.rms_mm);
     }
     assert!(rms[0] > rms[1] && rms[1] > rms[2], "{rms:?}");

@@ -7,7 +7,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
 use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::Target;
-use rigcal_model::identification::{identify, random_poses, IdentifyOptions, Level};
+use rigcal_model::identification::{identify, random_poses, Level};
 use rigcal_model::model::effects::{fit_recording_effects, EffectSpec, ModelEffect};
 use rigcal_model::model::hybrid::{Approach, HybridOptions};
 use rigcal_model::model::LoadedModel;
@@ -88,7 +88,13 @@ struct Models {
 
 fn model_with(sc: &Scenario, d: &Path, specs: &[EffectSpec]) -> (Models, Vec<ModelEffect>) {
     let rec = sc.world().record(&measurable_poses(sc, 300, 1), 1);
-    let id = identify(&sc.rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let id = identify(
+        &sc.rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
     let fitted = fit_recording_effects(&sc.rig, &rec, &id, specs).expect("effects fit");
     let mut file = ModelFile::constant(&sc.rig, &fitted.fit, Provenance::default());
     file.effects = fitted.effects.clone();
@@ -265,7 +271,13 @@ fn older_model_files_without_effects_still_read() {
     let d = dir("old");
     let sc = scenario(&d, "plain", "");
     let rec = sc.world().record(&measurable_poses(&sc, 60, 3), 1);
-    let id = identify(&sc.rig, &rec, Level::Full, &IdentifyOptions::default()).unwrap();
+    let id = identify(
+        &sc.rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .unwrap();
     let file = ModelFile::constant(&sc.rig, &id.fit, Provenance::default());
     let text = serde_json::to_string_pretty(&file).unwrap();
     assert!(

@@ -189,7 +189,13 @@ fn the_library_pipeline_returns_the_planted_rows_with_their_file_lines() {
         .write_dir(dir.path())
         .expect("write");
     let rec = Recording::read(dir.path(), rig.chain.joints()).expect("read");
-    let id = identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let id = identify(
+        &rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
     let mut found: Vec<(u64, Option<u64>)> = id.outliers.iter().map(|o| (o.seq, o.line)).collect();
     found.sort_unstable();
     assert_eq!(found, vec![(18, Some(19)), (53, Some(54)), (89, Some(90))]);
@@ -203,7 +209,13 @@ fn more_outliers_than_the_cap_remove_nothing_and_say_so() {
     // 8 of 100 rows off by 3–6 mm: more than 5 %.
     let planted: Vec<(usize, f64)> = (0..8).map(|k| (5 + 12 * k, 3.0 + k as f64 / 2.0)).collect();
     let rec = with_planted(4, &planted);
-    let id = identify(&rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let id = identify(
+        &rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
     assert!(id.outliers.is_empty());
     assert_eq!(id.fit.after.n, 100);
     let warning = id.outlier_warning.expect("a warning");
@@ -218,7 +230,7 @@ fn held_out_recordings_compare_nominal_kinematics_with_the_fit() {
             name: "another day".into(),
             recording: recording(3),
         }],
-        ..IdentifyOptions::default()
+        ..rigcal_model::diagnosis::outliers::identify_options()
     };
     let id = identify(&rig, &recording(3), Level::Full, &options).expect("identify");
     let [h] = id.heldout.as_slice() else {
@@ -233,7 +245,7 @@ fn held_out_recordings_compare_nominal_kinematics_with_the_fit() {
             name: "empty".into(),
             recording: Recording::new(rig.chain.joints()),
         }],
-        ..IdentifyOptions::default()
+        ..rigcal_model::diagnosis::outliers::identify_options()
     };
     let e = identify(&rig, &recording(3), Level::Full, &empty).expect_err("no measured rows");
     assert!(
@@ -245,7 +257,7 @@ fn held_out_recordings_compare_nominal_kinematics_with_the_fit() {
 #[test]
 fn a_fixed_frame_leaves_nothing_to_fit_at_level_frames_and_no_rows_is_an_error() {
     let rig = Rig::load(Path::new(RIG)).expect("rig");
-    let opts = IdentifyOptions::default();
+    let opts = rigcal_model::diagnosis::outliers::identify_options();
     let e = identify(&rig, &recording(3), Level::Frames, &opts).expect_err("nothing to fit");
     assert!(
         matches!(
@@ -296,7 +308,7 @@ fn a_clean_recording_with_structured_residuals_keeps_every_row() {
                 &c.scenario.rig,
                 &c.recording,
                 level,
-                &IdentifyOptions::default(),
+                &rigcal_model::diagnosis::outliers::identify_options(),
             )
             .expect("identify");
             assert!(
@@ -326,7 +338,13 @@ fn a_clean_recording_with_structured_residuals_keeps_every_row() {
         }
     }
     let rec = sc.world().record(&poses, 1);
-    let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let id = identify(
+        rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
     assert!(
         id.outliers.is_empty() && id.outlier_warning.is_none(),
         "{:?}",
@@ -353,8 +371,13 @@ fn planted_rows_are_found_in_a_structured_recording() {
                 *p += d * size;
             }
         }
-        let id = identify(&rig, &c.recording, Level::Full, &IdentifyOptions::default())
-            .expect("identify");
+        let id = identify(
+            &rig,
+            &c.recording,
+            Level::Full,
+            &rigcal_model::diagnosis::outliers::identify_options(),
+        )
+        .expect("identify");
         let mut found: Vec<(u64, f64)> = id.outliers.iter().map(|o| (o.seq, o.size_mm)).collect();
         found.sort_by_key(|f| f.0);
         assert_eq!(
@@ -374,8 +397,13 @@ fn planted_rows_are_found_in_a_structured_recording() {
             .filter(|(k, _)| !planted.iter().any(|p| p.0 == *k))
             .map(|(_, r)| r.clone())
             .collect();
-        let plain =
-            identify(&rig, &clean, Level::Full, &IdentifyOptions::default()).expect("identify");
+        let plain = identify(
+            &rig,
+            &clean,
+            Level::Full,
+            &rigcal_model::diagnosis::outliers::identify_options(),
+        )
+        .expect("identify");
         for k in 0..id.fit.params.len() {
             let (a, b) = (id.fit.params.get(k), plain.fit.params.get(k));
             assert!(
@@ -408,7 +436,13 @@ fn gross_rows_in_a_structured_recording_are_the_rows_the_structure_judgement_fin
             *p += d;
         }
     }
-    let id = identify(rig, &rec, Level::Full, &IdentifyOptions::default()).expect("identify");
+    let id = identify(
+        rig,
+        &rec,
+        Level::Full,
+        &rigcal_model::diagnosis::outliers::identify_options(),
+    )
+    .expect("identify");
     let mut fast: Vec<(u64, f64)> = id.outliers.iter().map(|o| (o.seq, o.size_mm)).collect();
     fast.sort_by_key(|f| f.0);
     assert_eq!(fast.iter().map(|f| f.0).collect::<Vec<_>>(), vec![41, 201]);

@@ -13,7 +13,7 @@ use rigcal_core::kinematics::{JointSpec, Robot};
 use rigcal_core::recording::{Recording, Status};
 use rigcal_core::rig::{Instrument, Rig};
 use rigcal_devices::devices::contact::{approach_speed, measure_contact};
-use rigcal_devices::devices::emulators::table::InjectedFault;
+use rigcal_devices::devices::emulators::faults::InjectedFault;
 use rigcal_devices::devices::{
     open_devices, Arm, ArmPose, ArmStatus, Backend, DeviceError, InstrumentDevices, OpenedRig,
     RigDevices, SimClock, Table,
@@ -716,7 +716,7 @@ struct MissingPanel {
     inner: Box<dyn rigcal_devices::devices::Panel>,
     calls: usize,
     miss: std::ops::Range<usize>,
-    faults: rigcal_devices::devices::emulators::panel::PanelFaultHandle,
+    faults: rigcal_devices::devices::emulators::faults::PanelFaultHandle,
 }
 
 impl rigcal_devices::devices::Panel for MissingPanel {
@@ -926,7 +926,7 @@ struct FaultOnTravel {
     last_xy: Option<[f64; 2]>,
     travels: usize,
     nth: usize,
-    faults: rigcal_devices::devices::emulators::table::TableFaultHandle,
+    faults: rigcal_devices::devices::emulators::faults::TableFaultHandle,
 }
 
 impl Table for FaultOnTravel {
@@ -1037,7 +1037,7 @@ struct SilencingPanel {
     calls: usize,
     at: usize,
     then: Box<dyn Fn() + Send>,
-    faults: rigcal_devices::devices::emulators::panel::PanelFaultHandle,
+    faults: rigcal_devices::devices::emulators::faults::PanelFaultHandle,
 }
 
 impl rigcal_devices::devices::Panel for SilencingPanel {

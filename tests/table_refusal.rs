@@ -9,7 +9,7 @@ use std::time::Duration;
 
 use rigcal_core::rig::Rig;
 use rigcal_devices::devices::clock::VirtualClock;
-use rigcal_devices::devices::table_canopen::CanOpenTable;
+use rigcal_devices::devices::drivers::canopen::CanOpenTable;
 use rigcal_devices::devices::Table;
 use rigcal_devices::protocols::can::CanFrame;
 use rigcal_devices::protocols::canopen::{SdoData, SdoRequest, SdoResponse};

@@ -164,14 +164,14 @@ fn diagnosis_names_compliance_and_it_carries() {
     let kinds: Vec<_> = report
         .effects
         .iter()
-        .map(|e| (e.kind.as_str(), e.joint))
+        .map(|e| (e.kind.name(), e.joint))
         .collect();
     eprintln!("{kinds:?}");
     assert!(
         report
             .effects
             .iter()
-            .any(|e| e.kind == "joint_compliance" && e.joint == Some(2)),
+            .any(|e| e.kind.name() == "joint_compliance" && e.joint == Some(2)),
         "{kinds:?}"
     );
     let clean = without_rows(train, report.outliers.iter().map(|o| o.seq));

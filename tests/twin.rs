@@ -7,6 +7,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::SeedableRng;
 use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::Recording;
+use rigcal_model::effects::{discrepancy, EffectKind};
 use rigcal_model::identification::random_poses;
 use rigcal_sim::twin::{learn, Twin, TwinOptions};
 use rigcal_sim::world::Scenario;
@@ -178,7 +179,7 @@ fn flags_what_is_not_in_the_library_claims_no_library_effect_and_simulates_the_d
         "{}",
         t.scenario
     );
-    assert!(t.scenario.contains(rigcal_sim::world::discrepancy::FLAG));
+    assert!(t.scenario.contains(discrepancy::FLAG));
     // Library terms the diagnosis named beside it are written commented only.
     let written: Vec<&str> = t.scenario.lines().filter(|l| !l.starts_with('#')).collect();
     for kind in [
@@ -232,7 +233,10 @@ fn cli_learns_and_writes_the_updated_scenario() {
     assert!(stdout.contains("RMS sim vs recording: before"), "{stdout}");
     let learned = Scenario::load(&out, None).expect("written scenario");
     assert!(
-        learned.effects.iter().any(|e| e.kind() == "backlash"),
+        learned
+            .effects
+            .iter()
+            .any(|e| e.kind() == EffectKind::Backlash),
         "{stdout}"
     );
 }

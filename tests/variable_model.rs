@@ -192,7 +192,7 @@ fn the_pipeline_as_library_calls_meets_the_papers_accuracy_on_the_fig6_path() {
     let loaded = rigcal_model::model::ModelFile::load(&file).unwrap();
     let paths = calibration::build_paths(&loaded.rig, &[PathChoice::Fig6], &PathOptions::default())
         .unwrap();
-    let names = calibration::PAPER_TRACED_CEPS.map(String::from);
+    let names = rigcal_paper::preset::SEED_000.traced_ceps();
     let trace = calibration::traced_ceps(&loaded.rig, &names).unwrap();
     let results = calibration::evaluate(&loaded, &file, &sc, &paths, &trace).unwrap();
     let max = |model: &str| {
@@ -238,7 +238,7 @@ mod paper_fig6 {
         let loaded = ModelFile::load(&file).unwrap();
         let paths =
             calibration::build_paths(&loaded.rig, &[path], &PathOptions::default()).unwrap();
-        let names = calibration::PAPER_TRACED_CEPS.map(String::from);
+        let names = rigcal_paper::preset::SEED_000.traced_ceps();
         let trace = calibration::traced_ceps(&loaded.rig, &names).unwrap();
         let results = calibration::evaluate(&loaded, &file, &sc, &paths, &trace).unwrap();
         PathFigures::of(&loaded, &paths[0], &results[0], &trace)

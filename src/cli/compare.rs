@@ -2,11 +2,9 @@
 //! the neuro-kinematic model (seed 001) on one recording and one validation set, side by side;
 //! as a table (terminal and Markdown) and SVG plots. See [`rigcal_calibration::compare`].
 
-use anyhow::{bail, Result};
-use rigcal_calibration::{self as calibration, CalibrationOptions, CompareInput};
+use anyhow::Result;
+use rigcal_calibration::{self as calibration, CalibrationOptions, CompareFiles};
 use rigcal_core::rig::Rig;
-use rigcal_model::report::PathSpec;
-use rigcal_sim::world::Scenario;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal compare`.
@@ -35,7 +33,7 @@ pub struct Args {
     #[arg(long = "path", default_values_t = vec!["fig6".to_string(), "fig7".to_string()])]
     pub paths: Vec<String>,
     #[command(flatten)]
-    pub settings: CalibrationOptions,
+    pub settings: super::options::CalibrationArgs,
     /// Directory for the table (`compare.md`), plots (SVG) and CSVs.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -43,37 +41,18 @@ pub struct Args {
 
 pub fn run(a: Args) -> Result<()> {
     let rig = Rig::load(&a.rig)?;
-    let scenario = a
-        .scenario
-        .as_deref()
-        .map(|p| Scenario::load(p, None))
-        .transpose()?;
-    if let Some(sc) = &scenario {
-        calibration::check_scenario_rig(&rig, sc)?;
-    }
-    let world = scenario.as_ref().map(|s| s.world());
-    let (n, seed) = (a.settings.neural.measurements, a.settings.seed);
-    let (obs, label) =
-        calibration::measurements(&rig, a.recording.as_deref(), world.as_ref(), n, seed)?;
-    let val = a.validation.as_deref();
-    let (val, _) =
-        calibration::measurements(&rig, val, world.as_ref(), a.validation_points, seed + 1000)?;
-    let paths = match world {
-        Some(_) => paper_paths(&rig, &a.paths)?,
-        None => Vec::new(),
-    };
-    let input = CompareInput {
-        observations: &obs,
-        label,
-        validation: &val,
-        world: world.as_ref(),
-        paths: &paths,
+    let files = CompareFiles {
+        scenario: a.scenario.as_deref(),
+        recording: a.recording.as_deref(),
+        validation: a.validation.as_deref(),
+        validation_points: a.validation_points,
+        paths: &a.paths,
     };
     let opts = CalibrationOptions {
         accuracy_mm: a.accuracy_mm,
-        ..a.settings.clone()
+        ..a.settings.clone().into()
     };
-    let c = calibration::compare(&rig, &input, &opts)?;
+    let c = calibration::compare_files(&rig, &files, &opts)?;
     print!("{}", c.text(a.accuracy_mm));
     if let Some(dir) = &a.out {
         for file in c.write_files(dir)? {
@@ -86,19 +65,4 @@ pub fn run(a: Args) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// The paper's paths named on the command line.
-fn paper_paths(rig: &Rig, names: &[String]) -> Result<Vec<(String, PathSpec)>> {
-    names
-        .iter()
-        .map(|p| {
-            let spec = match p.as_str() {
-                "fig6" => calibration::fig6_path(rig, 101),
-                "fig7" => calibration::fig7_path(rig, 101)?,
-                other => bail!("unknown path `{other}`: use fig6 or fig7"),
-            };
-            Ok((p.clone(), spec))
-        })
-        .collect()
 }

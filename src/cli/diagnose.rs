@@ -4,11 +4,11 @@
 
 use super::{RecordingArg, RigArg};
 use anyhow::{Context, Result};
+use rigcal_calibration::conventional::{named_effects_text, physics_sessions_text};
 use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
-use rigcal_model::diagnosis::sessions::{physics_heldout, without_rows, PerSession};
-use rigcal_model::diagnosis::{diagnose, Options, Report};
-use rigcal_sim::world::Scenario;
+use rigcal_model::diagnosis::sessions::PerSession;
+use rigcal_model::diagnosis::{diagnose, Options};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal diagnose`.
@@ -63,14 +63,24 @@ pub fn run(a: Args) -> Result<()> {
     let heldout = a
         .heldout
         .iter()
-        .map(|p| super::read_recording(&rig, p))
-        .collect::<Result<Vec<_>>>()?;
+        .map(|p| rigcal_calibration::read_recording(&rig, p))
+        .collect::<Result<Vec<_>, _>>()?;
     let report = diagnose(&rig, &rec, &Options { heldout })
         .with_context(|| format!("diagnosing {}", path.display()))?;
     println!("recording {}", path.display());
     print!("{}", report.text());
     if !a.heldout_session.is_empty() {
-        print_sessions(&a, &rig, &rec, &report)?;
+        // Held-out sessions with the frame refitted, geometry only and with the named effects.
+        let held = rigcal_calibration::read_heldout(&rig, &a.heldout_session)?;
+        let per = if a.refit_marker {
+            PerSession::FrameAndMarker
+        } else {
+            PerSession::Frame
+        };
+        print!(
+            "{}",
+            physics_sessions_text(&rig, &rec, &report, &held, per)?
+        );
     }
     if let Some(path) = &a.json {
         let text = report.to_json()?;
@@ -79,7 +89,7 @@ pub fn run(a: Args) -> Result<()> {
     }
     if let Some(html) = &a.report {
         let residuals = rigcal_model::diagnosis::plots::residual_series(&rig, &rec)?;
-        let source = super::report_source(&rig, &a.rig.rig, path, rec.rows.len());
+        let source = rigcal_model::report::html::Source::of(&rig, &a.rig.rig, path, rec.rows.len());
         let text = rigcal_model::report::html::diagnosis_report(&source, &report, &residuals);
         super::write_report(html, &text)?;
     }
@@ -90,68 +100,19 @@ pub fn run(a: Args) -> Result<()> {
     }
     if let Some(out) = &a.model {
         let (file, left) = rigcal_sim::twin::model_with_named_effects(&rig, &rec, &report)?;
-        for l in left {
-            println!("not in the model: {l}");
-        }
-        for e in &file.effects {
-            println!("in the model: {}", e.text());
-        }
+        print!("{}", named_effects_text(&file, &left));
         file.save(out)?;
         println!("model written to {}", out.display());
     }
     Ok(())
 }
 
-fn twin(
-    rig: &rigcal_core::rig::Rig,
-    rec: &rigcal_core::recording::Recording,
-    sim: &Path,
-    out: &Path,
-) -> Result<()> {
-    let source =
-        std::fs::read_to_string(sim).with_context(|| format!("reading {}", sim.display()))?;
-    let scenario = Scenario::parse(&source, sim, None)?;
-    if scenario.rig.name != rig.name {
-        anyhow::bail!(
-            "the scenario {} runs rig `{}`, the recording is read with rig `{}`",
-            sim.display(),
-            scenario.rig.name,
-            rig.name
-        );
-    }
+fn twin(rig: &Rig, rec: &Recording, sim: &Path, out: &Path) -> Result<()> {
+    let (scenario, source) = rigcal_calibration::files::twin_scenario(rig, sim)?;
     eprintln!("replaying {} rows in {} …", rec.rows.len(), sim.display());
     let t = rigcal_sim::twin::learn(&scenario, &source, rec, out, &Default::default())?;
     print!("{}", t.text());
     std::fs::write(out, &t.scenario).with_context(|| format!("writing {}", out.display()))?;
     println!("updated scenario written to {}", out.display());
-    Ok(())
-}
-
-/// Held-out sessions with the frame refitted, geometry only and with the named effects.
-fn print_sessions(a: &Args, rig: &Rig, rec: &Recording, report: &Report) -> Result<()> {
-    let held = super::identify::read_heldout(rig, &a.heldout_session)?;
-    let per = if a.refit_marker {
-        PerSession::FrameAndMarker
-    } else {
-        PerSession::Frame
-    };
-    let training = without_rows(rec, report.outliers.iter().map(|o| o.seq));
-    let ph = physics_heldout(rig, &training, &report.effects, &held, per)?;
-    println!(
-        "held-out sessions ({}); effects: {}",
-        per.describe(),
-        if ph.effects.is_empty() {
-            "none".to_string()
-        } else {
-            ph.effects.join(", ")
-        }
-    );
-    println!(
-        "  training RMS {:.4} mm geometry only, {:.4} mm with the effects",
-        ph.training_geometry, ph.training_physics
-    );
-    for (name, geometry, physics) in &ph.heldout {
-        println!("  held-out session {name}: RMS {geometry:.4} mm geometry only, {physics:.4} mm with the effects");
-    }
     Ok(())
 }

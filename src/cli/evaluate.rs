@@ -2,12 +2,10 @@
 //! every model a model file holds (conventional, regions, learner), with CEP traces and plots;
 //! see [`rigcal_calibration::evaluate`].
 
-use anyhow::{Context, Result};
-use rigcal_calibration::{self as calibration, PathChoice, PathFigures, PathOptions, TracedCep};
+use anyhow::Result;
+use rigcal_calibration::{self as calibration, PathChoice, PathOptions};
 use rigcal_model::model::ModelFile;
-use rigcal_model::report::PathSpec;
-use rigcal_sim::world::Scenario;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `rigcal evaluate`.
 #[derive(Debug, clap::Args)]
@@ -33,7 +31,7 @@ pub struct Args {
     #[arg(long, default_value_t = 7)]
     seed: u64,
     /// CEPs to trace along the paths, comma-separated (the paper's Figs. 6–8 trace these).
-    #[arg(long, value_delimiter = ',', default_values_t = calibration::PAPER_TRACED_CEPS.map(String::from))]
+    #[arg(long, value_delimiter = ',', default_values_t = rigcal_paper::preset::SEED_000.traced_ceps())]
     trace_ceps: Vec<String>,
     /// Directory for the plots (SVG) and a CSV of the errors.
     #[arg(long)]
@@ -49,109 +47,25 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let choices = a
-        .paths
-        .iter()
-        .map(|p| PathChoice::parse(p))
-        .collect::<Result<Vec<_>, _>>()?;
+    let choices = PathChoice::parse_all(&a.paths)?;
     let rig = ModelFile::load(&a.model)?.rig;
-    let paths = calibration::build_paths(
-        &rig,
-        &choices,
-        &PathOptions {
-            points: a.points,
-            random_paths: a.random_paths,
-            seed: a.seed,
-        },
-    )?;
-    let figures = evaluate(
-        &a.model,
-        &a.scenario,
-        &paths,
-        &a.trace_ceps,
-        a.out.as_deref(),
-    )?;
+    let opts = PathOptions {
+        points: a.points,
+        random_paths: a.random_paths,
+        seed: a.seed,
+    };
+    let paths = calibration::build_paths(&rig, &choices, &opts)?;
+    let out = a.out.as_deref();
+    let (figures, text) =
+        calibration::evaluate_files(&a.model, &a.scenario, &paths, &a.trace_ceps, out)?;
+    print!("{text}");
     if let Some(file) = &a.json {
-        let json = calibration::EvaluationJson {
-            format: "rigcal-evaluation",
-            model: a.model.display().to_string(),
-            scenario: a.scenario.display().to_string(),
-            paths: figures,
-        };
-        std::fs::write(file, serde_json::to_string_pretty(&json)? + "\n")
-            .with_context(|| format!("writing {}", file.display()))?;
+        calibration::EvaluationJson::new(&a.model, &a.scenario, figures).write(file)?;
         println!("figures written to {}", file.display());
     }
-    evaluate_effects(&a.model, &a.scenario, &paths, a.payload_kg)
-}
-
-/// For a model with effects: each path's targets compensated in order with the geometry alone
-/// and with the effects, and the true error of the moves in the scenario's world
-/// ([`rigcal_sim::twin::hybrid::compensated_errors`]).
-fn evaluate_effects(
-    model: &Path,
-    scenario: &Path,
-    paths: &[PathSpec],
-    payload_kg: f64,
-) -> Result<()> {
-    let loaded = ModelFile::load(model)?;
-    if loaded.file.effects.is_empty() {
-        return Ok(());
-    }
-    let world = Scenario::load(scenario, None)?.world();
-    let opts = rigcal_model::model::hybrid::HybridOptions {
-        payload_kg,
-        ..Default::default()
-    };
-    for path in paths {
-        println!(
-            "{}: true error of the compensated moves, in the path's order (backlash from it)",
-            path.name
-        );
-        let (geometry, effects) =
-            rigcal_sim::twin::hybrid::geometry_vs_effects(&loaded, &world, &path.points, &opts)
-                .map_err(|e| {
-                    anyhow::Error::new(e.source).context(format!("path point {}", e.line))
-                })?;
-        for r in [geometry, effects] {
-            println!(
-                "  {:<14} mean {:.4} mm, max {:.4} mm",
-                r.model,
-                r.mean_mm(),
-                r.max_mm()
-            );
-        }
-    }
+    print!(
+        "{}",
+        calibration::effects_text(&a.model, &a.scenario, &paths, a.payload_kg)?
+    );
     Ok(())
-}
-
-/// Evaluates every model of the model file at `model` along `paths` in `scenario`'s truth,
-/// tracing `trace`, printing a table per path (and the error inside an unmeasurable region)
-/// and, with `out`, writing plots and a CSV there; the figures per path.
-pub(crate) fn evaluate(
-    model: &Path,
-    scenario: &Path,
-    paths: &[PathSpec],
-    trace: &[String],
-    out: Option<&Path>,
-) -> Result<Vec<PathFigures>> {
-    let loaded = ModelFile::load(model)?;
-    let trace: Vec<TracedCep> = calibration::traced_ceps(&loaded.rig, trace)?;
-    let scenario = Scenario::load(scenario, None)?;
-    let all = calibration::evaluate(&loaded, model, &scenario, paths, &trace)?;
-    let mut figures = Vec::with_capacity(paths.len());
-    for (path, results) in paths.iter().zip(&all) {
-        let f = PathFigures::of(&loaded, path, results, &trace);
-        print!(
-            "{}{}",
-            calibration::path_table(path, results, &trace),
-            f.inside_text()
-        );
-        if let Some(dir) = out {
-            let files = calibration::write_path_files(dir, path, results, &trace)?;
-            print!("{}", files.text());
-        }
-        figures.push(f);
-    }
-    Ok(figures)
 }

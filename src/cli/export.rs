@@ -1,8 +1,8 @@
-//! `rigcal export`: a calibration taken home ([`rigcal_model::export`]).
+//! `rigcal export`: a calibration taken home ([`rigcal_calibration::convert::export_files`]).
 
 use anyhow::{Context, Result};
-use rigcal_model::export::{export_urdf, exported_parameters, offsets_yaml, ExportOptions};
-use rigcal_model::model::ModelFile;
+use rigcal_calibration::convert::{export_files, ExportFormat};
+use rigcal_model::export::ExportOptions;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal export`.
@@ -41,11 +41,12 @@ enum ExportCommand {
     },
 }
 
-/// What `rigcal export urdf` writes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum Format {
-    Urdf,
-    Yaml,
+super::options::value_enum! {
+    /// What `rigcal export urdf` writes.
+    Format => ExportFormat {
+        Urdf,
+        Yaml,
+    }
 }
 
 pub fn run(a: Args) -> Result<()> {
@@ -57,19 +58,8 @@ pub fn run(a: Args) -> Result<()> {
         base,
         tip,
     } = a.command;
-    let loaded = ModelFile::load(&model)?;
-    let (e, note) = exported_parameters(&loaded.file, &loaded.rig, &model)?;
-    if let Some(n) = note {
-        tracing::warn!("{n}");
-    }
-    let text = std::fs::read_to_string(&urdf)
-        .with_context(|| format!("cannot read {}", urdf.display()))?;
-    let x = export_urdf(&text, &loaded.rig.chain, &e, &ExportOptions { base, tip })
-        .with_context(|| format!("exporting {} into {}", model.display(), urdf.display()))?;
-    let body = match format {
-        Format::Urdf => x.text.clone(),
-        Format::Yaml => offsets_yaml(&x, &urdf.display().to_string()),
-    };
+    let options = ExportOptions { base, tip };
+    let (body, x) = export_files(&model, &urdf, format.into(), &options)?;
     std::fs::write(&out.out, body)
         .with_context(|| format!("cannot write {}", out.out.display()))?;
     println!(

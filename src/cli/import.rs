@@ -6,41 +6,26 @@ use super::{OutArg, RigArg};
 use anyhow::{bail, Result};
 use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::{import_csv, ImportSpec};
+use rigcal_core::recording::{AngleUnit as RecordingAngleUnit, LengthUnit as RecordingLengthUnit};
 use std::path::PathBuf;
 
-/// Length unit of the input.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum LengthUnit {
-    /// Metres (URDF's unit).
-    M,
-    /// Millimetres.
-    Mm,
-}
-
-impl From<LengthUnit> for rigcal_core::recording::LengthUnit {
-    fn from(u: LengthUnit) -> Self {
-        match u {
-            LengthUnit::M => Self::M,
-            LengthUnit::Mm => Self::Mm,
-        }
+super::options::value_enum! {
+    /// Length unit of the input.
+    LengthUnit => RecordingLengthUnit {
+        /// Metres (URDF's unit).
+        M,
+        /// Millimetres.
+        Mm,
     }
 }
 
-/// Angle unit of the input.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-pub enum AngleUnit {
-    /// Radians (URDF's unit).
-    Rad,
-    /// Degrees.
-    Deg,
-}
-
-impl From<AngleUnit> for rigcal_core::recording::AngleUnit {
-    fn from(u: AngleUnit) -> Self {
-        match u {
-            AngleUnit::Rad => Self::Rad,
-            AngleUnit::Deg => Self::Deg,
-        }
+super::options::value_enum! {
+    /// Angle unit of the input.
+    AngleUnit => RecordingAngleUnit {
+        /// Radians (URDF's unit).
+        Rad,
+        /// Degrees.
+        Deg,
     }
 }
 

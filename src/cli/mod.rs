@@ -10,6 +10,7 @@ mod export;
 mod identify;
 mod import;
 mod observability;
+mod options;
 mod plan;
 mod progress;
 mod register;
@@ -21,7 +22,6 @@ mod simulate;
 
 use anyhow::Context as _;
 use clap::{Parser, Subcommand};
-use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
 use std::path::{Path, PathBuf};
@@ -78,7 +78,7 @@ pub(crate) struct RecordingArg {
 impl RecordingArg {
     /// Reads the recording for a rig.
     pub fn read(&self, rig: &Rig) -> anyhow::Result<Recording> {
-        read_recording(rig, &self.recording)
+        Ok(rigcal_calibration::read_recording(rig, &self.recording)?)
     }
 }
 
@@ -204,67 +204,6 @@ fn init_logging(verbose: u8) {
         .with_writer(std::io::stderr)
         .with_target(false)
         .try_init();
-}
-
-/// Reads a recording for a rig, with the path in the error.
-pub(crate) fn read_recording(rig: &Rig, path: &Path) -> anyhow::Result<Recording> {
-    Recording::read_measured(path, rig.chain.joints()).with_context(|| {
-        format!(
-            "reading the recording {} for rig `{}` ({} joints)",
-            path.display(),
-            rig.name,
-            rig.chain.joints().len()
-        )
-    })
-}
-
-/// A table of parameter values for the terminal.
-pub(crate) fn parameter_table(
-    layout: &rigcal_core::kinematics::ParamLayout,
-    fit: &rigcal_model::identification::FitResult,
-    truth: Option<&rigcal_core::kinematics::ErrorParams>,
-) -> String {
-    use std::fmt::Write;
-    let mut s = String::new();
-    let _ = write!(s, "  {:<10} {:>11} {:>10}", "parameter", "value", "σ");
-    if truth.is_some() {
-        let _ = write!(s, " {:>11} {:>6}", "injected", "dev/σ");
-    }
-    s.push('\n');
-    for (k, &i) in fit.free.iter().enumerate() {
-        let id = layout.ids()[i];
-        let v = id.kind.to_file_units(fit.params.get(i));
-        let sd = id.kind.to_file_units(fit.sigma[k]);
-        let _ = write!(
-            s,
-            "  {:<10} {:>+11.5} {:>10.5} {}",
-            layout.symbol(id),
-            v,
-            sd,
-            id.kind.unit()
-        );
-        if let Some(t) = truth {
-            let tv = id.kind.to_file_units(t.get(i));
-            let _ = write!(s, " {:>+11.5} {:>6.2}", tv, (v - tv) / sd);
-        }
-        s.push('\n');
-    }
-    s
-}
-
-/// The "fitted from" of an HTML report. (Strings borrowed from the caller's paths.)
-pub(crate) fn report_source<'a>(
-    rig: &'a Rig,
-    rig_path: &'a Path,
-    recording: &'a Path,
-    rows: usize,
-) -> rigcal_model::report::html::Source<'a> {
-    rigcal_model::report::html::Source {
-        rig: &rig.name,
-        rig_path: rig_path.to_str().unwrap_or("(rig file)"),
-        recording: recording.to_str().unwrap_or("(recording)"),
-        rows,
-    }
 }
 
 /// Writes an HTML report and says where.

@@ -3,7 +3,8 @@
 
 use super::{RecordingArg, RigArg};
 use anyhow::Result;
-use rigcal_model::identification::registration::{register_recording, Registration};
+use rigcal_calibration::conventional::registration_text;
+use rigcal_model::identification::registration::register_recording;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal register`.
@@ -27,32 +28,10 @@ pub fn run(a: Args) -> Result<()> {
     let rig = a.rig.load()?;
     let rec = a.recording.read(&rig)?;
     let reg = register_recording(&rig.chain, &rec)?;
-    print_registration(&reg);
+    print!("{}", registration_text(&reg));
     if let Some(out) = a.out {
         reg.apply(&rec).write_dir(&out)?;
         println!("registered recording written to {}", out.display());
     }
     Ok(())
-}
-
-/// Prints a registration: the transform with its σ, and the residual.
-fn print_registration(reg: &Registration) {
-    let info = reg.info();
-    let (xyz, rpy) = (info.translation_mm, info.rpy_deg);
-    println!(
-        "registration from {} points (nominal kinematics): world = R · table + t",
-        reg.n
-    );
-    println!(
-        "  t   = ({:+.4}, {:+.4}, {:+.4}) mm   σ ({:.4}, {:.4}, {:.4}) mm",
-        xyz[0], xyz[1], xyz[2], reg.sigma[0], reg.sigma[1], reg.sigma[2]
-    );
-    println!(
-        "  rpy = ({:+.5}, {:+.5}, {:+.5}) deg",
-        rpy[0], rpy[1], rpy[2]
-    );
-    println!(
-        "  residual: RMS {:.4} mm, max {:.4} mm (what the nominal kinematics cannot explain; identification absorbs it)",
-        reg.stats.rms_mm, reg.stats.max_mm
-    );
 }

@@ -1,11 +1,8 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use rigcal_model::neural::network::Method;
-use rigcal_paper::reproduce::seed001::{
-    check_figures, run_fig7, run_table, tables_for, write_fig7, write_table, ReproOptions,
-    REPRODUCED_FIGURES, REPRODUCED_TABLES, TABLE5_POSES,
-};
+use rigcal_paper::reproduce::seed001::{reproduce, ReproOptions, TABLE5_POSES};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal reproduce`.
@@ -59,31 +56,9 @@ pub fn run(a: Args) -> Result<()> {
         },
         ..ReproOptions::default()
     };
-    let everything = a.tables.is_empty() && a.figures.is_empty();
-    let (tables, figures) = if everything {
-        (REPRODUCED_TABLES.to_vec(), REPRODUCED_FIGURES.to_vec())
-    } else {
-        (tables_for(&a.tables)?, a.figures.clone())
-    };
-    check_figures(&figures)?;
-    if let Some(dir) = &a.out {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
-    for key in tables {
-        let (table, took) = run_table(key, &o, a.hidden)?;
-        let text = table.render();
-        println!("{text}  ({:.1} s)\n", took.as_secs_f64());
-        if let Some(dir) = &a.out {
-            write_table(dir, key, &text)?;
-        }
-    }
-    if figures.contains(&7) {
-        let (fig, took) = run_fig7(&o)?;
-        println!("{}  ({:.1} s)\n", fig.render(), took.as_secs_f64());
-        if let Some(dir) = &a.out {
-            let (svg, csv) = write_fig7(&fig, dir)?;
-            println!("plot: {}  data: {}", svg.display(), csv.display());
-        }
-    }
+    let out = a.out.as_deref();
+    reproduce(&a.tables, &a.figures, &o, a.hidden, out, &mut |t| {
+        print!("{t}")
+    })?;
     Ok(())
 }

@@ -25,6 +25,7 @@ use rand::{RngExt, SeedableRng};
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::recording::Recording;
 use rigcal_model::diagnosis::{linalg::rms3, standard_fit};
+use rigcal_model::effects::EffectKind;
 use rigcal_model::identification::random_poses;
 use rigcal_sim::world::{
     Backlash, DriftTarget, Effect, JointCompliance, JointContext, PointMass, Scenario, TableScale,
@@ -221,8 +222,9 @@ impl Shape {
 }
 
 impl Effect for AngleFunction {
-    fn kind(&self) -> &'static str {
-        "test_angle_function"
+    fn kind(&self) -> EffectKind {
+        // Out of the library: a smooth joint error the diagnosis can only fit as a discrepancy.
+        EffectKind::Discrepancy
     }
 
     fn joint_offsets(&self, ctx: &JointContext<'_>, dq: &mut [f64]) {

@@ -4,7 +4,10 @@
 //! measurements, actual against the simulated truth when there is one), along paths,
 //! measurements used and training time.
 
-use super::{calibrate, Calibrated, CalibrationError, CalibrationOptions, Source};
+use super::evaluate::{fig6_path, fig7_path};
+use super::{
+    calibrate, check_scenario_rig, Calibrated, CalibrationError, CalibrationOptions, Source,
+};
 use rand::SeedableRng;
 use rigcal_core::kinematics::{ErrorModel, ErrorParams, Robot};
 use rigcal_core::rig::Rig;
@@ -12,7 +15,7 @@ use rigcal_model::identification::{fit, random_poses, FitOptions, Observation};
 use rigcal_model::learners::LearnerKind;
 use rigcal_model::model::ModelBody;
 use rigcal_model::report::{evaluate_path, plot_errors, PathResult, PathSpec};
-use rigcal_sim::world::World;
+use rigcal_sim::world::{Scenario, World};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -29,6 +32,84 @@ pub struct CompareInput<'a> {
     pub world: Option<&'a World>,
     /// Paths to evaluate along (with a world), each with its short name (`fig6`).
     pub paths: &'a [(String, PathSpec)],
+}
+
+/// What `rigcal compare` is given besides the rig and the options: files and counts.
+#[derive(Debug, Clone, Copy)]
+pub struct CompareFiles<'a> {
+    /// The simulated truth (a scenario file): simulates the recording and validation set when
+    /// they are not given, and gives actual errors and the paths.
+    pub scenario: Option<&'a Path>,
+    /// The recording every method is fitted on (else `opts.neural.measurements` random poses
+    /// of the scenario).
+    pub recording: Option<&'a Path>,
+    /// A validation recording (else random poses of the scenario).
+    pub validation: Option<&'a Path>,
+    /// Validation poses simulated when no validation recording is given.
+    pub validation_points: usize,
+    /// The paper's paths to evaluate along with a scenario: `fig6`, `fig7`.
+    pub paths: &'a [String],
+}
+
+/// [`compare`] on the files `rigcal compare` takes: the scenario loaded and checked against
+/// the rig, the measurements read or simulated (the validation set with `opts.seed + 1000`),
+/// the paths made.
+pub fn compare_files(
+    rig: &Rig,
+    files: &CompareFiles<'_>,
+    opts: &CalibrationOptions,
+) -> Result<Comparison, CalibrationError> {
+    let scenario = files
+        .scenario
+        .map(|p| Scenario::load(p, None))
+        .transpose()?;
+    if let Some(sc) = &scenario {
+        check_scenario_rig(rig, sc)?;
+    }
+    let world = scenario.as_ref().map(|s| s.world());
+    let (n, seed) = (opts.neural.measurements, opts.seed);
+    let (obs, label) = measurements(rig, files.recording, world.as_ref(), n, seed)?;
+    let (val, _) = measurements(
+        rig,
+        files.validation,
+        world.as_ref(),
+        files.validation_points,
+        seed + 1000,
+    )?;
+    let paths = match world {
+        Some(_) => paper_paths(rig, files.paths)?,
+        None => Vec::new(),
+    };
+    let input = CompareInput {
+        observations: &obs,
+        label,
+        validation: &val,
+        world: world.as_ref(),
+        paths: &paths,
+    };
+    compare(rig, &input, opts)
+}
+
+/// The paper's paths by name (`fig6`, `fig7`), 101 points each.
+pub fn paper_paths(
+    rig: &Rig,
+    names: &[String],
+) -> Result<Vec<(String, PathSpec)>, CalibrationError> {
+    names
+        .iter()
+        .map(|p| {
+            let spec = match p.as_str() {
+                "fig6" => fig6_path(rig, 101),
+                "fig7" => fig7_path(rig, 101)?,
+                other => {
+                    return Err(CalibrationError::PathWords(format!(
+                        "unknown path `{other}`: use fig6 or fig7"
+                    )))
+                }
+            };
+            Ok((p.clone(), spec))
+        })
+        .collect()
 }
 
 /// One method's row of the comparison.
@@ -261,7 +342,7 @@ impl Comparison {
     }
 
     /// The comparison as a Markdown table (what `rigcal compare` prints and writes).
-    pub fn markdown(&self) -> String {
+    fn markdown(&self) -> String {
         let mut md = String::new();
         md.push_str("| method | measurements | training (s) | validation mean / max, apparent (mm) | actual (mm) |");
         for (p, _) in &self.paths {

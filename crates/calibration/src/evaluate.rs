@@ -15,9 +15,6 @@ use rigcal_sim::world::Scenario;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// The CEPs the paper traces along its paths (Figs. 6–8): Δθ1 Δd1 Δa1 Δα1.
-pub const PAPER_TRACED_CEPS: [&str; 4] = ["theta1", "d1", "a1", "alpha1"];
-
 /// A path to evaluate along, as named on a command line.
 #[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
@@ -40,6 +37,11 @@ pub enum PathChoice {
 }
 
 impl PathChoice {
+    /// Each of `words` parsed ([`PathChoice::parse`]), in order.
+    pub fn parse_all(words: &[String]) -> Result<Vec<Self>, CalibrationError> {
+        words.iter().map(|w| PathChoice::parse(w)).collect()
+    }
+
     /// `fig6`, `fig7`, `random` or `joint:A1,A2,A3:B1,B2,B3` (degrees or mm).
     pub fn parse(words: &str) -> Result<Self, CalibrationError> {
         match words {
@@ -225,6 +227,52 @@ pub fn evaluate(
         .iter()
         .map(|path| evaluate_path(rig, path, &refs, &truth, &names))
         .collect())
+}
+
+/// For a model file with effects (`rigcal identify --effects`), each path's targets
+/// compensated in order with the geometry alone and with the effects, and the true error of
+/// the moves in the scenario file's world ([`rigcal_sim::twin::hybrid::geometry_vs_effects`]),
+/// `payload_kg` at the tool: the text `rigcal evaluate` prints (empty for a model without
+/// effects).
+pub fn effects_text(
+    model: &Path,
+    scenario: &Path,
+    paths: &[PathSpec],
+    payload_kg: f64,
+) -> Result<String, CalibrationError> {
+    let loaded = rigcal_model::model::ModelFile::load(model)?;
+    let mut s = String::new();
+    if loaded.file.effects.is_empty() {
+        return Ok(s);
+    }
+    let world = Scenario::load(scenario, None)?.world();
+    let opts = rigcal_model::model::hybrid::HybridOptions {
+        payload_kg,
+        ..Default::default()
+    };
+    for path in paths {
+        let _ = writeln!(
+            s,
+            "{}: true error of the compensated moves, in the path's order (backlash from it)",
+            path.name
+        );
+        let (geometry, effects) =
+            rigcal_sim::twin::hybrid::geometry_vs_effects(&loaded, &world, &path.points, &opts)
+                .map_err(|e| CalibrationError::PathPoint {
+                    line: e.line,
+                    source: e.source,
+                })?;
+        for r in [geometry, effects] {
+            let _ = writeln!(
+                s,
+                "  {:<14} mean {:.4} mm, max {:.4} mm",
+                r.model,
+                r.mean_mm(),
+                r.max_mm()
+            );
+        }
+    }
+    Ok(s)
 }
 
 /// The table `rigcal evaluate` prints for a path.

@@ -5,11 +5,17 @@
 //!
 //! - [`calibrate`]: one entry point for every source and learner; the paper's constants (region
 //!   cap, design poses, FCMAC sensors and c) are [`CalibrationOptions`] with the paper's values
-//!   as defaults.
+//!   as defaults (`rigcal_paper::preset` lists them).
 //! - [`through_session`]: planning mode through an opened session, with resume.
 //! - [`evaluate`](evaluate::evaluate): models along paths against a scenario's truth;
-//!   [`PathFigures`] the same as data (and JSON), with the error inside an unmeasurable region.
+//!   [`PathFigures`] the same as data (and JSON), with the error inside an unmeasurable region;
+//!   [`evaluate_files`] both from the files `rigcal evaluate` takes.
 //! - [`compare`](compare::compare): conventional, variable D-H and neural side by side.
+//! - [`commands`]: compensated joint commands for a targets file, as `rigcal compensate`
+//!   writes them.
+//! - [`conventional`]: conventional calibration as `rigcal identify` runs it, its text and
+//!   model file; [`files`]: the recordings the commands read, with the path in the error.
+//! - [`convert`]: a rig file from a URDF, and a calibration folded back into the URDF.
 //! - [`rig_check`]: checking a model on the rig itself along a measurable path.
 //!
 //! Nothing here prints: each call returns the figures a command line shows, with a `text()`
@@ -18,8 +24,12 @@
 #![warn(missing_docs)]
 #![deny(clippy::unwrap_used)]
 
+pub mod commands;
 pub mod compare;
+pub mod conventional;
+pub mod convert;
 pub mod evaluate;
+pub mod files;
 mod neural;
 pub mod path_figures;
 pub mod rig_check;
@@ -27,16 +37,18 @@ mod through_session;
 mod variable;
 
 pub use compare::{
-    compare, measurements, simulated_observations, CompareInput, Comparison, MethodRow,
+    compare, compare_files, measurements, paper_paths, simulated_observations, CompareFiles,
+    CompareInput, Comparison, MethodRow,
 };
 pub use evaluate::{
-    build_paths, evaluate, fig6_path, fig7_path, path_table, traced_ceps, write_path_files,
-    PathChoice, PathFiles, PathOptions, TracedCep, PAPER_TRACED_CEPS,
+    build_paths, effects_text, evaluate, fig6_path, fig7_path, path_table, traced_ceps,
+    write_path_files, PathChoice, PathFiles, PathOptions, TracedCep,
 };
-pub use path_figures::{EvaluationJson, InsideFigures, MethodFigures, PathFigures};
+pub use files::{read_heldout, read_recording, ReadRecordingError};
+pub use path_figures::{evaluate_files, EvaluationJson, InsideFigures, MethodFigures, PathFigures};
 pub use through_session::{
-    planning_note, refuse_other_options, resumed_requests, through_session, PlanningFiles,
-    SessionCalibrated,
+    command_path_text, open_session, planning_note, refuse_other_options, resumed_requests,
+    through_session, PlanningFiles, PlanningSession, SessionCalibrated,
 };
 pub use variable::{with_learner, WorldMeasurer};
 
@@ -48,51 +60,43 @@ use rigcal_model::learners::{
 };
 use rigcal_model::model::ModelFile;
 use rigcal_sim::world::Scenario;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// Settings of a calibration; every default is the paper's (seed 000, and seed 001 for the
-/// network). As a command-line option group (`#[command(flatten)]`) it declares the settings
-/// every calibrating command shares, with these defaults; the demanded accuracy, the learner
-/// and the unmeasurable point are each command's own.
-#[derive(Debug, Clone, PartialEq, clap::Args)]
+/// Settings of a calibration; every default is the paper's (seed 000, listed in
+/// `rigcal_paper::preset`, and seed 001 for the network) or rigcal's where the paper says
+/// nothing (test points, selection, learner tolerance). One field per setting a caller may
+/// change, so that `..Default::default()` names only what differs: hence more than 12.
+#[derive(Debug, Clone, PartialEq)]
 pub struct CalibrationOptions {
     /// Division space.
-    #[arg(long = "division", value_name = "DIVISION", value_enum, default_value_t = Space::Joint)]
     pub space: Space,
-    /// Demanded accuracy after compensation (mm).
-    #[arg(skip = 0.1)]
+    /// Demanded accuracy after compensation (mm; the paper's 0.1 by default).
     pub accuracy_mm: f64,
-    /// Most regions [default: the paper's 110 for joint, 130 for Cartesian division].
-    #[arg(long)]
+    /// Most regions; None: the paper's 110 for joint, 130 for Cartesian division
+    /// ([`Space::paper_region_cap`]).
     pub max_regions: Option<usize>,
-    /// Measurements per region.
-    #[arg(long, default_value_t = 20)]
+    /// Measurements per region (the paper's 20 by default).
     pub per_region: usize,
     /// Test points per region (planning mode): the 27 points of a 3 × 3 × 3 grid over the
     /// region (corners, edge midpoints, face centres, centre), then a Halton set; fewer take
-    /// the corners first.
-    #[arg(long, default_value_t = 27)]
+    /// the corners first. 27 by default (the paper draws a number at random).
     pub test_points: usize,
     /// How each region's measurement locations are chosen from its candidates: `kappa` (the
     /// paper's: κ of eq. (4) lowered by random exchanges) or `d-optimal` (det of MᵀM raised by
     /// greedy choice and exchange passes). Either way a region keeps its parent's measurements
     /// that fall in it and measures only the missing ones.
-    #[arg(long, value_enum, default_value_t = Selection::Kappa)]
     pub selection: Selection,
     /// Planning mode: a half keeps its parent's measurements that fall in it and measures only
     /// the missing ones (true); `--no-reuse` measures every region afresh (each region's fit
     /// uses only its own), for comparison.
-    #[arg(long = "no-reuse", action = clap::ArgAction::SetFalse)]
     pub reuse_parent: bool,
-    /// Random poses the identifiable basis (the CEPs) is chosen on.
-    #[arg(long, default_value_t = PAPER_DESIGN_POSES)]
+    /// Random poses the identifiable basis (the CEPs) is chosen on (100 by default; the paper
+    /// does not say).
     pub design_poses: usize,
     /// The learner that generalises the region-wise CEPs, or a neural network instead.
-    #[arg(skip = LearnerKind::Fcmac)]
     pub learner: LearnerKind,
-    /// Sizes of the FCMAC and CMAC.
-    #[command(flatten)]
+    /// Sizes of the FCMAC and CMAC (the paper's FCMAC by default).
     pub learner_settings: LearnerSettings,
     /// Train the learner on each region's CEPs with the part of their deviation from its
     /// parent's that the region's own measurements cannot see put back to the parent's, the
@@ -100,31 +104,26 @@ pub struct CalibrationOptions {
     /// region's measurements). Small regions are ill-conditioned and their least-squares CEPs
     /// wander along directions that cancel inside them but not in the learner's blend of
     /// neighbours. 0 (the paper's) trains on the CEPs as fitted; the regions' own CEPs are
-    /// never changed. [default: 0.5 for an FCMAC with position training, whose measured points
+    /// never changed. None: 0.5 for an FCMAC with position training, whose measured points
     /// the position training then puts right, so the tolerance only sets what the network
-    /// carries where no measurement reaches; 0, the paper's, otherwise]
-    #[arg(long, value_name = "FRACTION")]
+    /// carries where no measurement reaches; 0, the paper's, otherwise
+    /// ([`learner_tolerance_in_use`](Self::learner_tolerance_in_use)).
     pub learner_tolerance: Option<f64>,
     /// Settings of a neural learner.
-    #[command(flatten)]
     pub neural: NeuralOptions,
     /// Seed of every random choice.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// A point of the division space (file units: deg, or mm for R) whose region cannot be
     /// measured (seed 000 Fig. 8): no measurement is taken (or, offline, used) inside it, so
     /// none reaches a fit; without a learner it takes its neighbours' mean CEPs, a learner
     /// generalises there.
-    #[arg(skip)]
     pub unmeasurable_at: Option<[f64; 3]>,
     /// The depth of that region in the division (the root is 0); None: the depth of the leaf
     /// containing the point in the same division made without it.
-    #[arg(skip)]
     pub unmeasurable_depth: Option<usize>,
     /// A half of a split region the rig cannot measure enough of becomes a region without
     /// measurements of its own instead of stopping the split (seed 000 section 7; see
     /// [`DivisionOptions::unmeasurable_halves`](rigcal_model::division::DivisionOptions)).
-    #[arg(skip)]
     pub unmeasurable_halves: bool,
 }
 
@@ -134,8 +133,9 @@ pub struct CalibrationOptions {
 /// keep the rig's section 7 path below 0.5 mm, 0.5 with more margin; it holds at seeds 4 and 5.
 pub const POSITION_TRAINING_TOLERANCE: f64 = 0.5;
 
-/// The paper's design poses for choosing the identifiable basis.
-pub const PAPER_DESIGN_POSES: usize = 100;
+/// The design poses the identifiable basis is chosen on when none are given: the paper does not
+/// say how many; rigcal's 100 (`rigcal_paper::preset`).
+const DEFAULT_DESIGN_POSES: usize = 100;
 
 impl Default for CalibrationOptions {
     fn default() -> Self {
@@ -147,7 +147,7 @@ impl Default for CalibrationOptions {
             test_points: 27,
             selection: Selection::Kappa,
             reuse_parent: true,
-            design_poses: PAPER_DESIGN_POSES,
+            design_poses: DEFAULT_DESIGN_POSES,
             learner: LearnerKind::Fcmac,
             learner_settings: LearnerSettings::default(),
             learner_tolerance: None,
@@ -215,26 +215,21 @@ impl CalibrationOptions {
 }
 
 /// Settings of a neural learner (`nn-direct`, `nn-inverse`), seed 001's.
-#[derive(Debug, Clone, PartialEq, clap::Args)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct NeuralOptions {
     /// Neural learners: the scheme of seed 001, 2 (joint correction) or 4 (position
     /// correction). 4 is the default for arms: a joint correction computed by inverse
     /// kinematics blows up near singular poses (the stretched RV-M2).
-    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(2..=4))]
     pub scheme: u8,
     /// Neural learners: hidden neurons.
-    #[arg(long, default_value_t = 20)]
     pub hidden: usize,
     /// Neural learners: most epochs of batch back-propagation.
-    #[arg(long, default_value_t = 3000)]
     pub epochs: usize,
     /// Neural learners: learning rate η on the batch-summed gradient [default: 0.46 / number
     /// of training poses, the paper's η = 0.01 at its 46 poses].
-    #[arg(long)]
     pub learning_rate: Option<f64>,
     /// Random poses measured on a scenario when no recording is given (the paper's 110
     /// regions × 20): by a neural learner, and by `compare` for every method.
-    #[arg(long, default_value_t = 2200)]
     pub measurements: usize,
 }
 
@@ -312,7 +307,8 @@ pub enum Figures {
     Neural(NeuralFigures),
 }
 
-/// How a division and its learner went.
+/// How a division and its learner went: one field per figure `rigcal calibrate` prints (more
+/// than 12: they are read one by one, and grouping them would only add a level).
 #[derive(Debug, Clone, PartialEq)]
 pub struct DivisionFigures {
     /// `offline` or `planning`.
@@ -449,6 +445,18 @@ pub enum CalibrationError {
         /// The scenario's rig file.
         rig_path: PathBuf,
     },
+    /// The scenario of a dry run emulates another rig than the one given.
+    #[error("scenario {} assumes rig `{scenario_rig}`, but --rig {} is `{rig}`", scenario.display(), rig_path.display())]
+    DryRunRig {
+        /// The scenario file.
+        scenario: PathBuf,
+        /// Its rig's name.
+        scenario_rig: String,
+        /// The rig file given.
+        rig_path: PathBuf,
+        /// That rig's name.
+        rig: String,
+    },
     /// A network learns from given measurements, not by asking for them.
     #[error("the network learns from --recording DIR or --scenario FILE (--session is planning mode of the variable D-H model: run `rigcal session` first, then --recording)")]
     NeuralNeedsData,
@@ -467,6 +475,12 @@ pub enum CalibrationError {
     /// No recording to compare on and no scenario to simulate one.
     #[error("give --scenario to simulate measurements, or --recording and --validation")]
     NothingToCompare,
+    /// The rig's devices (or their emulators) could not be opened.
+    #[error(transparent)]
+    Devices(#[from] rigcal_devices::devices::DeviceError),
+    /// A session could not be opened (boxed: a session error is large, and rare).
+    #[error(transparent)]
+    OpenSession(Box<rigcal_devices::session::SessionError>),
     /// The session measuring for the division stopped.
     #[error("the session in {} stopped; its recording keeps every finished point", dir.display())]
     Session {
@@ -551,6 +565,25 @@ pub enum CalibrationError {
         /// The cause.
         source: rigcal_model::compensation::CompensationError,
     },
+    /// A point of a path could not be compensated.
+    #[error("path point {line}")]
+    PathPoint {
+        /// The point (from 1).
+        line: u64,
+        /// The cause.
+        source: rigcal_model::compensation::CompensationError,
+    },
+    /// A file of figures could not be written.
+    #[error("writing {}", path.display())]
+    Writing {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// Figures could not be put as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
     /// A file could not be written.
     #[error("cannot write {}", path.display())]
     Io {
@@ -595,6 +628,30 @@ pub fn check_scenario_rig(rig: &Rig, sc: &Scenario) -> Result<(), CalibrationErr
         rig: rig.name.clone(),
         rig_path: sc.rig_path.clone(),
     })
+}
+
+/// The scenario of a dry run (`sim`, its own seed overridden by `sim_seed`), checked against
+/// the rig in use (`rig_path` names it in the error): same rig name and instrument. None
+/// without a scenario: the rig's own devices.
+pub fn dry_run_scenario(
+    rig: &Rig,
+    rig_path: &Path,
+    sim: Option<&Path>,
+    sim_seed: Option<u64>,
+) -> Result<Option<Scenario>, CalibrationError> {
+    let Some(p) = sim else {
+        return Ok(None);
+    };
+    let s = Scenario::load(p, sim_seed)?;
+    if s.rig.name != rig.name || s.rig.instrument != rig.instrument {
+        return Err(CalibrationError::DryRunRig {
+            scenario: s.path.clone(),
+            scenario_rig: s.rig.name.clone(),
+            rig_path: rig_path.to_path_buf(),
+            rig: rig.name.clone(),
+        });
+    }
+    Ok(Some(s))
 }
 
 /// The identifiable basis (layout indices) on `opts.design_poses` random poses.

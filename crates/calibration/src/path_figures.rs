@@ -3,13 +3,15 @@
 //! not be measured. `rigcal evaluate --json` writes them; the demo's `summary.json` holds the
 //! same per-path records.
 
-use super::evaluate::TracedCep;
+use super::evaluate::{evaluate, path_table, traced_ceps, write_path_files, TracedCep};
+use super::CalibrationError;
 use rigcal_model::division::{Bounds, DivisionSpace};
-use rigcal_model::model::{LoadedModel, ModelBody};
+use rigcal_model::model::{LoadedModel, ModelBody, ModelFile};
 use rigcal_model::report::{PathResult, PathSpec};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
+use std::path::Path;
 
 /// One method along one path.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -79,7 +81,7 @@ impl PathFigures {
     }
 
     /// The line `rigcal evaluate` prints about the unmeasurable region (empty without one).
-    pub fn inside_text(&self) -> String {
+    fn inside_text(&self) -> String {
         let Some(inside) = &self.inside_unmeasurable else {
             return String::new();
         };
@@ -184,4 +186,56 @@ pub struct EvaluationJson {
     pub scenario: String,
     /// Per path.
     pub paths: Vec<PathFigures>,
+}
+
+impl EvaluationJson {
+    /// The figures of `paths` of the model file `model` in the truth of the scenario file
+    /// `scenario`.
+    pub fn new(model: &Path, scenario: &Path, paths: Vec<PathFigures>) -> Self {
+        EvaluationJson {
+            format: "rigcal-evaluation",
+            model: model.display().to_string(),
+            scenario: scenario.display().to_string(),
+            paths,
+        }
+    }
+
+    /// Writes the figures as pretty JSON (with a final newline) to `file`.
+    pub fn write(&self, file: &Path) -> Result<(), CalibrationError> {
+        let text = serde_json::to_string_pretty(self)? + "\n";
+        std::fs::write(file, text).map_err(|source| CalibrationError::Writing {
+            path: file.to_path_buf(),
+            source,
+        })
+    }
+}
+
+/// [`evaluate`] from the files `rigcal evaluate` takes: every model of the model file at
+/// `model` along `paths` in the truth of the scenario file `scenario`, tracing the CEPs named
+/// in `trace`; with `out`, each path's plots and CSV written there. Per path its figures, and
+/// the text `rigcal evaluate` prints: each path's table, the error inside an unmeasurable
+/// region, the files written.
+pub fn evaluate_files(
+    model: &Path,
+    scenario: &Path,
+    paths: &[PathSpec],
+    trace: &[String],
+    out: Option<&Path>,
+) -> Result<(Vec<PathFigures>, String), CalibrationError> {
+    let loaded = ModelFile::load(model)?;
+    let trace = traced_ceps(&loaded.rig, trace)?;
+    let scenario = rigcal_sim::world::Scenario::load(scenario, None)?;
+    let all = evaluate(&loaded, model, &scenario, paths, &trace)?;
+    let mut text = String::new();
+    let mut figures = Vec::with_capacity(paths.len());
+    for (path, results) in paths.iter().zip(&all) {
+        let f = PathFigures::of(&loaded, path, results, &trace);
+        text.push_str(&path_table(path, results, &trace));
+        text.push_str(&f.inside_text());
+        if let Some(dir) = out {
+            text.push_str(&write_path_files(dir, path, results, &trace)?.text());
+        }
+        figures.push(f);
+    }
+    Ok((figures, text))
 }

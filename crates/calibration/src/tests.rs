@@ -37,7 +37,7 @@ fn planning_on_a_scenario_builds_a_variable_model_with_the_papers_fcmac() {
     };
     assert_eq!(division.mode, "planning");
     assert_eq!(division.max_regions, 4);
-    assert_eq!(division.design_poses, PAPER_DESIGN_POSES);
+    assert_eq!(division.design_poses, DEFAULT_DESIGN_POSES);
     let Some(Learner::Fcmac(f)) = learner else {
         panic!("no FCMAC");
     };
@@ -59,9 +59,16 @@ fn planning_on_a_scenario_builds_a_variable_model_with_the_papers_fcmac() {
         text.contains("FCMAC: [17, 11, 11] sensors, c = [3, 3, 3], 2057 association cells"),
         "{text}"
     );
-    assert_eq!(
-        cal.model.fitted_from.recording.as_deref(),
-        Some("scenario sim/paper-sim.toml")
+    // The scenario is named as it was given (here by an absolute path from this crate).
+    let from = cal
+        .model
+        .fitted_from
+        .recording
+        .as_deref()
+        .unwrap_or_default();
+    assert!(
+        from.starts_with("scenario ") && from.ends_with("sim/paper-sim.toml"),
+        "{from}"
     );
 }
 
@@ -341,7 +348,7 @@ fn paths_are_parsed_and_traced_ceps_checked() {
         "/../../rigs/rv-m2-ideal.toml"
     )))
     .expect("rig");
-    let names: Vec<String> = PAPER_TRACED_CEPS.map(String::from).to_vec();
+    let names: Vec<String> = ["theta1", "d1", "a1", "alpha1"].map(String::from).to_vec();
     let traced = traced_ceps(&rig, &names).expect("the paper's CEPs");
     let shown: Vec<String> = traced
         .iter()
@@ -364,41 +371,4 @@ fn paths_are_parsed_and_traced_ceps_checked() {
     .expect("paths");
     assert_eq!(paths.len(), 3);
     assert!(paths.iter().all(|p| p.points.len() == 11));
-}
-
-#[derive(clap::Parser)]
-struct Cli {
-    #[command(flatten)]
-    opts: CalibrationOptions,
-}
-
-#[test]
-fn the_command_line_defaults_are_the_library_defaults() {
-    use clap::Parser;
-    assert_eq!(
-        Cli::parse_from(["rigcal"]).opts,
-        CalibrationOptions::default()
-    );
-    let given = Cli::parse_from([
-        "rigcal",
-        "--division",
-        "cartesian",
-        "--fcmac-sensors",
-        "9,7,5",
-        "--fcmac-c",
-        "2,2,2",
-        "--max-regions",
-        "40",
-        "--design-poses",
-        "50",
-        "--scheme",
-        "2",
-    ])
-    .opts;
-    assert_eq!(given.space, Space::Cartesian);
-    assert_eq!(given.learner_settings.sensors, Some([9, 7, 5]));
-    assert_eq!(given.learner_settings.c, [2, 2, 2]);
-    assert_eq!((given.region_cap(), given.design_poses), (40, 50));
-    assert_eq!(given.neural.scheme, 2);
-    assert!(Cli::try_parse_from(["rigcal", "--fcmac-c", "3,3"]).is_err());
 }

@@ -8,12 +8,18 @@
 //! on: the run ends as an uninterrupted one would.
 
 use super::{Calibrated, CalibrationError, CalibrationOptions, Source};
+use rigcal_core::recording::SessionInfo;
 use rigcal_core::rig::Rig;
+use rigcal_devices::devices::{CommandPath, SimClock};
 use rigcal_devices::session::{
-    recorded_requests, RecordedRequest, Session, SessionError, SessionMeasurer, SessionReport,
+    recorded_requests, RecordedRequest, Session, SessionError, SessionMeasurer, SessionOptions,
+    SessionReport,
 };
 use rigcal_model::division::DivisionError;
+use rigcal_sim::world::Scenario;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicUsize;
+use std::sync::Arc;
 
 /// How `session.toml` notes a planning-mode session; the options that shaped it follow.
 const PLANNING_NOTE: &str =
@@ -51,8 +57,8 @@ fn planning_options(files: PlanningFiles<'_>, opts: &CalibrationOptions) -> Stri
         opts.unmeasurable_at
             .map_or("(none)".to_string(), |p| format!("{},{},{}", p[0], p[1], p[2])),
     );
-    // Only when not the paper's: sessions recorded before the option existed resume as before.
-    if opts.design_poses != super::PAPER_DESIGN_POSES {
+    // Only when not the default: sessions recorded before the option existed resume as before.
+    if opts.design_poses != super::DEFAULT_DESIGN_POSES {
         s.push_str(&format!(" --design-poses {}", opts.design_poses));
     }
     if opts.selection != rigcal_model::division::Selection::Kappa {
@@ -102,6 +108,36 @@ pub fn refuse_other_options(
         });
     }
     Ok(())
+}
+
+/// Opens (or, with `resume`, resumes) the planning-mode session in `dir` on the rig's devices,
+/// or on emulators of `scenario`'s world on the virtual clock, every arm move on the rig's
+/// command path (`MP` on a `cartesian` rig, the moves that went through `MJ` instead counted in
+/// `fallbacks`); its `session.toml` notes `files`, the scenario's seed and the options that
+/// shape the session ([`planning_note`]).
+pub fn open_session<'r>(
+    rig: &'r Rig,
+    files: PlanningFiles<'_>,
+    scenario: Option<&Scenario>,
+    dir: &Path,
+    opts: &CalibrationOptions,
+    resume: bool,
+    fallbacks: &Arc<AtomicUsize>,
+) -> Result<Session<'r>, CalibrationError> {
+    let opened = rigcal_sim::emulation::open_rig(rig, scenario, SimClock::Virtual)?
+        .on_command_path(super::rig_check::command_path(rig), fallbacks);
+    let mut so = SessionOptions::new(dir);
+    so.seed = opts.seed;
+    so.resume = resume;
+    so.fsync = !opened.devices.clock.is_virtual();
+    so.info = SessionInfo {
+        rig: Some(files.rig.display().to_string()),
+        scenario: files.sim.map(|p| p.display().to_string()),
+        seed: scenario.map(|s| s.seed),
+        notes: Some(planning_note(files, opts)),
+        ..Default::default()
+    };
+    Session::open(rig, opened, so).map_err(|e| CalibrationError::OpenSession(Box::new(e)))
 }
 
 /// The division's requests a resumed session in `dir` finished in earlier runs, read after
@@ -207,4 +243,88 @@ pub fn through_session<'r>(
     })?;
     let report = session.finish().map_err(stopped)?;
     Ok(SessionCalibrated { calibrated, report })
+}
+
+/// A planning-mode session as `rigcal calibrate --session` runs it, opened and ready to
+/// measure: the session, what an earlier run of it finished, and the count of arm moves that
+/// went through `MJ` on a `cartesian` rig.
+pub struct PlanningSession<'r> {
+    session: Session<'r>,
+    dir: PathBuf,
+    recorded: Vec<RecordedRequest>,
+    fallbacks: Arc<AtomicUsize>,
+    dry_run: bool,
+}
+
+impl<'r> PlanningSession<'r> {
+    /// Opens (or, with `resume`, resumes after refusing other options) the planning-mode
+    /// session in `dir`, on emulators of the `files.sim` scenario's world (checked against the
+    /// rig) or on the rig's devices. A resumed session's finished points are read for the
+    /// division to replay.
+    pub fn open(
+        rig: &'r Rig,
+        files: PlanningFiles<'_>,
+        dir: &Path,
+        opts: &CalibrationOptions,
+        resume: bool,
+    ) -> Result<Self, CalibrationError> {
+        if opts.is_neural() {
+            return Err(CalibrationError::NeuralNeedsData);
+        }
+        if resume {
+            refuse_other_options(dir, files, opts)?;
+        }
+        let fallbacks = Arc::new(AtomicUsize::new(0));
+        let scenario = super::dry_run_scenario(rig, files.rig, files.sim, None)?;
+        let session = open_session(rig, files, scenario.as_ref(), dir, opts, resume, &fallbacks)?;
+        let recorded = if resume {
+            resumed_requests(rig, dir, session.points_done())?
+        } else {
+            Vec::new()
+        };
+        Ok(PlanningSession {
+            session,
+            dir: dir.to_path_buf(),
+            recorded,
+            fallbacks,
+            dry_run: files.sim.is_some(),
+        })
+    }
+
+    /// The finished points of earlier runs, replayed to the division before it measures on.
+    pub fn replayed(&self) -> usize {
+        self.recorded.len()
+    }
+
+    /// Runs the division through the session ([`through_session`]) and finishes it: the
+    /// calibration, and the text `rigcal calibrate --session` prints (the calibration's, the
+    /// session's line, and on a `cartesian` rig how the arm moves went).
+    pub fn calibrate(
+        self,
+        rig: &'r Rig,
+        opts: &CalibrationOptions,
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<(Calibrated, String), CalibrationError> {
+        let dir = self.dir;
+        let s = through_session(rig, self.session, &dir, self.recorded, opts, progress)?;
+        let mj_moves = self.fallbacks.load(std::sync::atomic::Ordering::Relaxed);
+        let text = format!(
+            "{}{}{}",
+            s.calibrated.text(),
+            s.session_text(&dir, self.dry_run),
+            command_path_text(rig, mj_moves)
+        );
+        Ok((s.calibrated, text))
+    }
+}
+
+/// How a session's arm moves went: on a `cartesian` rig through `MP`, with the count that went
+/// through `MJ` instead (their `MP` solution refused at a joint limit); nothing on a `joint` rig.
+pub fn command_path_text(rig: &Rig, mj_moves: usize) -> String {
+    match super::rig_check::command_path(rig) {
+        CommandPath::Cartesian => format!(
+            "arm moves through MP (the rig's cartesian command path); {mj_moves} through MJ, their MP solution refused at a joint limit\n"
+        ),
+        CommandPath::Joint => String::new(),
+    }
 }

@@ -1,8 +1,8 @@
 //! Smooth function bases, linear in their coefficients: cubic B-splines on equal intervals,
 //! harmonics of chosen orders, Gaussian radial functions. The diagnosis fits located residuals
-//! in them ([`rigcal_model::diagnosis::shapes`]); the simulated world evaluates a fitted discrepancy
-//! term with the same functions ([`rigcal_sim::world::discrepancy`]), so what the twin fits is what it
-//! simulates.
+//! in them (`rigcal_model::diagnosis::shapes`); the simulated world evaluates a fitted
+//! discrepancy term with the same functions (`rigcal_model::effects::discrepancy`), so what the
+//! twin fits is what it simulates.
 //!
 //! Units: the scalar variable in its own internal unit (rad, mm or s; harmonics take radians),
 //! positions in mm.

@@ -7,15 +7,16 @@
 //! |---|---|
 //! | [`protocols`] | pure codecs: Movemaster, CANopen/CiA 402, slcan, PenMount |
 //! | [`transports`] | bytes and frames: serial ports, slcan, SocketCAN, an in-process bus |
-//! | [`config`] | the rig file's `[devices]` section, read for the drivers |
-//! | [`devices`] | arm, table and panel drivers, their emulators, safety wrappers, the factory |
+//! | [`devices`] | the `[devices]` section, arm, table and panel drivers by registry with their emulators, safety wrappers, the factory |
+//! | [`config`] | [`devices::config`] under its short path |
 //! | [`session`] | automatic measurement sessions: plan, run (tokio), journal and resume |
 
 #![warn(missing_docs)]
 #![deny(clippy::unwrap_used)]
 
-pub mod config;
 pub mod devices;
 pub mod protocols;
 pub mod session;
 pub mod transports;
+
+pub use devices::config;

@@ -2,13 +2,17 @@
 //!
 //! | module | holds |
 //! |---|---|
+//! | [`preset`] | seed 000's settings, each with the section of the paper it comes from |
 //! | [`paper_regime`] | seed 000, section 6: Figs. 6, 7 and 8 in the paper's regime |
 //! | [`sec7`] | seed 000, section 7: the experiment on the (emulated) rig |
+//! | [`demo`] | `rigcal demo`: sections 6 and 7 at the preset's settings, the summary |
 //! | [`reproduce`] | seed 001: the papers' robots, their other schemes and tables, beside the papers' numbers (`rigcal reproduce`) |
 
 #![warn(missing_docs)]
 #![deny(clippy::unwrap_used)]
 
+pub mod demo;
 pub mod paper_regime;
+pub mod preset;
 pub mod reproduce;
 pub mod sec7;

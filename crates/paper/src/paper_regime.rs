@@ -3,6 +3,7 @@
 //! region and the CEP jumps of regions, FCMAC and CMAC. Data (serialised into the demo's
 //! `summary.json`) and the text of its `summary.txt`.
 
+use crate::preset::SEED_000;
 use rigcal_calibration::path_figures::{MethodFigures, PathFigures};
 use rigcal_model::division::{Selection, Space};
 use rigcal_model::model::{ModelBody, ModelFile};
@@ -34,7 +35,7 @@ impl PaperFigure {
     }
 
     /// What the paper reports for a method along this figure's path (seed 000 section 6).
-    pub fn paper_says(self, method: &str) -> &'static str {
+    fn paper_says(self, method: &str) -> &'static str {
         match (self, method) {
             (PaperFigure::Fig6 | PaperFigure::Fig8, "uncalibrated") => "0.4–1.2",
             (PaperFigure::Fig6, "conventional") => "below 0.2",
@@ -93,10 +94,8 @@ impl FigureRun {
     }
 
     fn text(&self) -> String {
-        let (paper_regions, paper_measurements) = match self.division {
-            Space::Joint => (110, 2200),
-            Space::Cartesian => (130, 2600),
-        };
+        let paper_regions = SEED_000.region_cap(self.division);
+        let paper_measurements = paper_regions * SEED_000.per_region;
         let mut s = format!(
             "  {}: {:?}-space division, {:?} selection, {} per region: {} regions, {} identification + {} test measurements (paper {paper_regions} regions, {paper_measurements} identification); {}, mean / max mm\n    ",
             self.figure.name(),

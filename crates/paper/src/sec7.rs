@@ -12,30 +12,31 @@
 //! of a 0.5 mm demand (conventions §9b).
 //!
 //! The paper's path "(−300, 520, 150) → (350, 690, 600) mm" lies in a frame it does not state
-//! and leaves the table's reach in Table I's world frame (conventions §2); [`SEC7_PATH_MM`] is
-//! the same line moved by (0, −170, −120) mm, inside the reach, 809 mm long as the paper's.
+//! and leaves the table's reach in Table I's world frame (conventions §2); the preset's
+//! [`Section7::path_mm`](crate::preset::Section7::path_mm) is the same line moved by
+//! (0, −170, −120) mm, inside the reach, 809 mm long as the paper's.
 
+use crate::preset::{Preset, SEED_000};
 use nalgebra::Vector3;
 use rigcal_calibration::rig_check::{
-    cartesian_floor, measured_errors_in, registration_of, resolution_floor,
+    cartesian_floor, compensated_commands, measured_errors_in, path_targets, registration_of,
+    resolution_floor,
 };
 use rigcal_calibration::{
-    planning_note, through_session, CalibrationError, CalibrationOptions, Figures, PlanningFiles,
+    open_session, through_session, CalibrationError, CalibrationOptions, Figures, PlanningFiles,
     SessionCalibrated,
 };
-use rigcal_core::kinematics::{solve_position_ik, ErrorModel, ErrorParams, IkOptions, Robot};
+use rigcal_core::kinematics::{solve_position_ik, ErrorParams, IkOptions, Robot};
 use rigcal_core::recording::{Recording, RegistrationInfo, SessionInfo, Status};
 use rigcal_core::rig::Rig;
-use rigcal_devices::devices::controller::CommandPath;
+use rigcal_devices::devices::CommandPath;
 use rigcal_devices::devices::{OpenedRig, SimClock};
 use rigcal_devices::session::plan::table_target;
 use rigcal_devices::session::{
     estimate, is_division_region, read_plan, registration_points, write_plan, ContactSettings,
-    PlannedPoint, Progress, RigSpeeds, RigTimeEstimate, Session, SessionError, SessionOptions,
+    PlannedPoint, Progress, RigSpeeds, RigTimeEstimate, SessionError, SessionOptions,
     SessionReport,
 };
-use rigcal_model::compensation::{compensate_from, CompensationOptions};
-use rigcal_model::division::Space;
 use rigcal_model::model::ModelBody;
 use rigcal_model::report::{PathError, PathResult, PathSpec};
 use rigcal_sim::emulation::open_rig;
@@ -46,20 +47,14 @@ use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-/// The paper's section 7 path (mm, in a frame it does not state).
-pub const PAPER_PATH_MM: [[f64; 3]; 2] = [[-300.0, 520.0, 150.0], [350.0, 690.0, 600.0]];
-/// The experiment's path (world mm): the paper's moved by (0, −170, −120) mm into the table's
-/// reach on `rigs/rv-m2.toml`, every point measurable, 809 mm long as the paper's.
-pub const SEC7_PATH_MM: [[f64; 3]; 2] = [[-300.0, 350.0, 30.0], [350.0, 520.0, 480.0]];
-/// Regions the paper's experiment used.
-pub const PAPER_REGIONS: usize = 85;
 /// The methods along the path, in the order measured and shown.
 pub const METHODS: [&str; 4] = ["uncalibrated", "conventional", "regions", "fcmac"];
 
-/// Settings of the experiment; the defaults are the paper's.
+/// Settings of the experiment; the defaults are the paper's ([`SEED_000`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct Sec7Options {
-    /// The division's settings (Cartesian, 0.5 mm, 20 per region, the FCMAC).
+    /// The division's settings (Cartesian, 0.5 mm, 20 per region, the FCMAC:
+    /// [`Preset::section7_calibration`]).
     pub calibration: CalibrationOptions,
     /// The path's ends (world mm).
     pub path_mm: [[f64; 3]; 2],
@@ -69,19 +64,21 @@ pub struct Sec7Options {
     pub joint_commands: bool,
 }
 
-impl Default for Sec7Options {
-    fn default() -> Self {
+impl Sec7Options {
+    /// The experiment at `preset`'s settings, 101 path points, through both command paths.
+    pub fn of(preset: &Preset) -> Self {
         Self {
-            calibration: CalibrationOptions {
-                space: Space::Cartesian,
-                accuracy_mm: 0.5,
-                unmeasurable_halves: true,
-                ..Default::default()
-            },
-            path_mm: SEC7_PATH_MM,
+            calibration: preset.section7_calibration(),
+            path_mm: preset.section7.path_mm,
             path_points: 101,
             joint_commands: true,
         }
+    }
+}
+
+impl Default for Sec7Options {
+    fn default() -> Self {
+        Self::of(&SEED_000)
     }
 }
 
@@ -276,7 +273,7 @@ pub fn run(
 /// A straight Cartesian line from `ends[0]` to `ends[1]` (world mm) of `n` points, each the
 /// nominal inverse kinematics from its neighbour's joints (one configuration all along), and
 /// every point measurable on the rig.
-pub fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSpec, Sec7Error> {
+fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSpec, Sec7Error> {
     let nominal = ErrorParams::zeros(rig.chain.layout());
     let (a, b) = (Vector3::from(ends[0]), Vector3::from(ends[1]));
     let mut seed: Option<Vec<f64>> = None;
@@ -344,24 +341,11 @@ fn divide(
     progress: &mut dyn FnMut(Sec7Stage),
 ) -> Result<SessionCalibrated, Sec7Error> {
     let dir = files.division_dir();
-    let opened = emulated_rig(
-        rig,
-        sc,
-        rigcal_calibration::rig_check::command_path(rig),
-        fallbacks,
-    )?;
-    let mut so = SessionOptions::new(&dir);
-    so.seed = opts.seed;
-    so.fsync = false;
     let planning = PlanningFiles {
         rig: files.rig,
         sim: Some(files.scenario),
     };
-    so.info = session_info(files, sc, planning_note(planning, opts));
-    let session = Session::open(rig, opened, so).map_err(|source| CalibrationError::Session {
-        dir: dir.clone(),
-        source: Box::new(source),
-    })?;
+    let session = open_session(rig, planning, Some(sc), &dir, opts, false, fallbacks)?;
     Ok(through_session(
         rig,
         session,
@@ -439,50 +423,20 @@ fn method_commands(
     path: &PathSpec,
     models: &[rigcal_model::model::NamedModel],
 ) -> Result<MethodCommands, Sec7Error> {
-    let nominal = ErrorParams::zeros(rig.chain.layout());
-    let targets: Vec<Vector3<f64>> = path
-        .points
-        .iter()
-        .map(|q| rig.chain.position(q, &nominal))
-        .collect();
+    let targets = path_targets(rig, path);
     let mut commands = vec![(METHODS[0].to_string(), path.points.clone())];
     for name in &METHODS[1..] {
         let Some((_, model)) = models.iter().find(|(n, _)| n == name) else {
             continue;
         };
-        commands.push((
-            name.to_string(),
-            compensated(rig, model.as_ref(), path, &targets)?,
-        ));
+        let compensated = compensated_commands(rig, model.as_ref(), path, &targets)?;
+        commands.push((name.to_string(), compensated));
     }
     Ok(MethodCommands { targets, commands })
 }
 
-fn compensated(
-    rig: &Rig,
-    model: &dyn ErrorModel,
-    path: &PathSpec,
-    targets: &[Vector3<f64>],
-) -> Result<Vec<Vec<f64>>, Sec7Error> {
-    let opts = CompensationOptions::default();
-    path.points
-        .iter()
-        .zip(targets)
-        .map(|(q, t)| {
-            compensate_from(&rig.chain, model, t, rig.held(), q.clone(), &opts)
-                .map(|c| c.command)
-                .map_err(|source| {
-                    Sec7Error::Calibration(CalibrationError::Compensation {
-                        target: [t.x, t.y, t.z],
-                        source,
-                    })
-                })
-        })
-        .collect()
-}
-
 /// Region id of a method's pass along the path.
-pub fn path_region(method: &str) -> String {
+fn path_region(method: &str) -> String {
     format!("path-{method}")
 }
 
@@ -593,7 +547,7 @@ impl CommandPathRun {
 
 impl Sec7Report {
     /// The division's figures.
-    pub fn division_figures(&self) -> Option<&rigcal_calibration::DivisionFigures> {
+    fn division_figures(&self) -> Option<&rigcal_calibration::DivisionFigures> {
         match &self.division.calibrated.figures {
             Figures::Division(d) => Some(d),
             Figures::Neural(_) => None,
@@ -644,22 +598,24 @@ impl Sec7Report {
         );
         let _ = writeln!(
             s,
-            "regions used: {} (paper {PAPER_REGIONS}); {} without a measurable well-conditioned set of their own{}",
+            "regions used: {} (paper {}); {} without a measurable well-conditioned set of their own{}",
             self.regions(),
+            SEED_000.section7.regions,
             self.unmeasurable.len(),
             if self.unmeasurable.is_empty() { String::new() } else { ":".into() }
         );
         for (id, why) in &self.unmeasurable {
             let _ = writeln!(s, "  {id}: {why}");
         }
+        let paper = SEED_000.section7.paper_path_mm;
         let _ = writeln!(
             s,
             "{} ({} points, {:.0} mm; the paper's ({:.0}, {:.0}, {:.0}) → ({:.0}, {:.0}, {:.0}) mm lies outside the table's reach), measured by the rig itself:",
             self.path.name,
             self.path.points.len(),
             self.path_length_mm,
-            PAPER_PATH_MM[0][0], PAPER_PATH_MM[0][1], PAPER_PATH_MM[0][2],
-            PAPER_PATH_MM[1][0], PAPER_PATH_MM[1][1], PAPER_PATH_MM[1][2],
+            paper[0][0], paper[0][1], paper[0][2],
+            paper[1][0], paper[1][1], paper[1][2],
         );
         for run in &self.runs {
             s.push_str(&run.text());
@@ -776,7 +732,7 @@ impl Sec7Report {
             path_length_mm: self.path_length_mm,
             accuracy_mm: self.division_figures().map_or(0.0, |d| d.accuracy_mm),
             regions: self.regions(),
-            paper_regions: PAPER_REGIONS,
+            paper_regions: SEED_000.section7.regions,
             measurements,
             test_measurements,
             unmeasurable_regions: self.unmeasurable.iter().map(|(id, _)| id.clone()).collect(),

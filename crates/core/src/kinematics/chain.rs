@@ -2,79 +2,13 @@
 //! seen through a measurement frame and ending at a marker point. See the module docs of
 //! [`crate::kinematics`] for the convention.
 
-use super::compiled::Rt;
+use super::ik::{solve_position_ik, IkOptions};
+use super::joint::{JointKind, JointSpec};
 use super::params::{ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
 use super::pose::{newton_inverse, KinematicsError, NEWTON_ITERATIONS, NEWTON_TOLERANCE};
-use super::{solve_position_ik, IkOptions, Robot};
+use super::rigid::{Motion, Rt};
+use super::Robot;
 use nalgebra::{DMatrix, Isometry3, Translation3, UnitQuaternion, Vector3};
-
-/// Revolute or prismatic.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum JointKind {
-    /// Rotates about its axis; values in radians inside, degrees in files.
-    Revolute,
-    /// Slides along its axis; values in millimetres.
-    Prismatic,
-}
-
-impl JointKind {
-    /// The recording column of joint `i` (1-based): `q{i}_deg` or `q{i}_mm`.
-    pub fn column(self, i: usize) -> String {
-        match self {
-            JointKind::Revolute => format!("q{i}_deg"),
-            JointKind::Prismatic => format!("q{i}_mm"),
-        }
-    }
-
-    /// Internal value (rad or mm) to file units (deg or mm).
-    pub fn to_file_units(self, v: f64) -> f64 {
-        match self {
-            JointKind::Revolute => v.to_degrees(),
-            JointKind::Prismatic => v,
-        }
-    }
-
-    /// File value (deg or mm) to internal units (rad or mm).
-    pub fn from_file_units(self, v: f64) -> f64 {
-        match self {
-            JointKind::Revolute => v.to_radians(),
-            JointKind::Prismatic => v,
-        }
-    }
-
-    /// The unit in files: `deg` or `mm`.
-    pub fn unit(self) -> &'static str {
-        match self {
-            JointKind::Revolute => "deg",
-            JointKind::Prismatic => "mm",
-        }
-    }
-}
-
-/// A joint: its name, kind and limits (internal units).
-#[derive(Debug, Clone, PartialEq)]
-pub struct JointSpec {
-    /// Name from the rig file (`J1`, `lift`, …).
-    pub name: String,
-    /// Revolute or prismatic.
-    pub kind: JointKind,
-    /// Lower limit (rad or mm).
-    pub min: f64,
-    /// Upper limit (rad or mm).
-    pub max: f64,
-}
-
-impl JointSpec {
-    /// True when `v` lies within the limits (with a tolerance for rounding in files).
-    pub fn within(&self, v: f64) -> bool {
-        let tol = match self.kind {
-            JointKind::Revolute => 1e-9,
-            JointKind::Prismatic => 1e-7,
-        };
-        v >= self.min - tol && v <= self.max + tol
-    }
-}
 
 /// Five-parameter link values (radians, millimetres).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -91,23 +25,13 @@ pub struct LinkParams {
     pub beta: f64,
 }
 
-/// A rigid pose given as a matrix or translation + roll-pitch-yaw.
-pub type FixedPose = Isometry3<f64>;
-
 /// A fixed transform (base or tool): five parameters, or a pose.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Transform {
     /// Rz(θ)·Tz(d)·Tx(a)·Rx(α)·Ry(β); error kinds θ d a α β.
     FivePar(LinkParams),
     /// A pose; error kinds x y z rz ry rx applied after it.
-    Pose(FixedPose),
-}
-
-/// An elementary motion about or along local axis k (0 = x, 1 = y, 2 = z).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) enum Motion {
-    Rot(usize),
-    Trans(usize),
+    Pose(Isometry3<f64>),
 }
 
 /// One elementary motion of the chain, carrying error parameter `param` (its layout index,
@@ -286,11 +210,6 @@ impl SerialChain {
         &self.tool
     }
 
-    /// The nominal marker point in the tool frame (mm).
-    pub fn marker(&self) -> &Vector3<f64> {
-        &self.marker
-    }
-
     /// The same chain seen through another nominal measurement frame.
     pub fn with_frame(&self, frame: Isometry3<f64>) -> Self {
         Self::new(
@@ -300,18 +219,6 @@ impl SerialChain {
             self.tool.clone(),
             frame,
             self.marker,
-        )
-    }
-
-    /// The same chain with another nominal marker point.
-    pub fn with_marker(&self, marker: Vector3<f64>) -> Self {
-        Self::new(
-            self.joints.clone(),
-            self.base.clone(),
-            self.links.clone(),
-            self.tool.clone(),
-            self.frame,
-            marker,
         )
     }
 
@@ -506,13 +413,4 @@ fn elementary(m: Motion, v: f64) -> Isometry3<f64> {
             Isometry3::from_parts(Translation3::from(unit(k) * v), UnitQuaternion::identity())
         }
     }
-}
-
-/// The five-parameter transform A(θ, d, a, α, β) as an isometry.
-pub fn five_par_transform(p: &LinkParams) -> Isometry3<f64> {
-    elementary(Motion::Rot(2), p.theta)
-        * elementary(Motion::Trans(2), p.d)
-        * elementary(Motion::Trans(0), p.a)
-        * elementary(Motion::Rot(0), p.alpha)
-        * elementary(Motion::Rot(1), p.beta)
 }

@@ -11,82 +11,17 @@
 //! [`Robot::position_and_param_jacobian`](super::Robot::position_and_param_jacobian) up to
 //! rounding (the products are associated differently).
 //!
-//! Frames are rotation matrix + translation ([`Rt`]): an elementary rotation about a local
-//! axis touches two columns of the matrix, a translation three numbers.
+//! Frames are rotation matrix + translation ([`Rt`](super::rigid::Rt)): an elementary rotation
+//! about a local axis touches two columns of the matrix, a translation three numbers.
 
-use super::chain::{Motion, SerialChain};
+use super::chain::SerialChain;
 use super::params::ErrorParams;
+use super::rigid::{Motion, Rt};
 use super::Robot;
-use nalgebra::{Isometry3, Matrix3, Vector3};
+use nalgebra::Vector3;
 
 /// Segments kept on the stack while a pose is evaluated; longer chains use the heap.
 const STACK_SEGMENTS: usize = 10;
-
-/// A rigid transform as rotation matrix and translation: x ↦ r·x + t.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Rt {
-    pub(super) r: Matrix3<f64>,
-    pub(super) t: Vector3<f64>,
-}
-
-impl Rt {
-    pub(super) const IDENTITY: Rt = Rt {
-        r: Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0),
-        t: Vector3::new(0.0, 0.0, 0.0),
-    };
-
-    pub(super) fn from_isometry(p: &Isometry3<f64>) -> Rt {
-        Rt {
-            r: *p.rotation.to_rotation_matrix().matrix(),
-            t: p.translation.vector,
-        }
-    }
-
-    /// self · other.
-    pub(super) fn then(&self, other: &Rt) -> Rt {
-        // Column by column (each a combination of self's columns): cheaper than the generic
-        // matrix product for 3 × 3.
-        let (c0, c1, c2) = (self.r.column(0), self.r.column(1), self.r.column(2));
-        let o = &other.r;
-        let col = |j: usize| c0 * o[(0, j)] + c1 * o[(1, j)] + c2 * o[(2, j)];
-        let t = &other.t;
-        Rt {
-            r: Matrix3::from_columns(&[col(0), col(1), col(2)]),
-            t: self.t + c0 * t.x + c1 * t.y + c2 * t.z,
-        }
-    }
-
-    /// self ← self · Rot_k(angle), given sin and cos of the angle: two columns change.
-    pub(super) fn rotate_local(&mut self, k: usize, s: f64, c: f64) {
-        let (i, j) = match k {
-            0 => (1, 2),
-            1 => (2, 0),
-            _ => (0, 1),
-        };
-        let ci = self.r.column(i).into_owned();
-        let cj = self.r.column(j).into_owned();
-        self.r.set_column(i, &(ci * c + cj * s));
-        self.r.set_column(j, &(cj * c - ci * s));
-    }
-
-    /// self ← self · Trans_k(v).
-    pub(super) fn translate_local(&mut self, k: usize, v: f64) {
-        self.t += self.r.column(k) * v;
-    }
-
-    /// self ← self · motion(v).
-    pub(super) fn apply_motion(&mut self, m: Motion, v: f64) {
-        match m {
-            Motion::Rot(k) => {
-                if v != 0.0 {
-                    let (s, c) = v.sin_cos();
-                    self.rotate_local(k, s, c);
-                }
-            }
-            Motion::Trans(k) => self.translate_local(k, v),
-        }
-    }
-}
 
 /// One moving joint: the constant transform from the frame after the previous joint up to this
 /// joint's motion (its nominal value and error included), then the motion by the joint value.
@@ -165,12 +100,6 @@ impl ChainAt {
     /// Number of error parameters (the chain's layout length).
     pub fn params(&self) -> usize {
         self.columns.len()
-    }
-
-    /// The layout index of joint `j`'s own motion (θ of a revolute joint, d of a prismatic one):
-    /// its Jacobian column is the joint's column of the joint Jacobian.
-    pub fn joint_param(&self, j: usize) -> usize {
-        self.joint_params[j]
     }
 
     /// The measured point (mm) at joint values `q`.
@@ -316,7 +245,7 @@ pub fn joint_trig(q: &[f64], out: &mut [[f64; 2]]) {
 mod tests {
     use super::*;
     use crate::kinematics::{JointKind, JointSpec, LinkParams, Robot, Transform};
-    use nalgebra::{Translation3, UnitQuaternion};
+    use nalgebra::{Isometry3, Translation3, UnitQuaternion};
 
     /// A chain with a prismatic joint, a pose base and tool and a non-trivial frame.
     fn chain() -> SerialChain {

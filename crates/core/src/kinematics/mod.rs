@@ -48,21 +48,24 @@ mod chain;
 mod compiled;
 mod held;
 mod ik;
+mod ik_at;
+mod joint;
 mod params;
 mod pose;
+mod rigid;
 mod spherical;
 pub mod urdf;
 
-pub use chain::{
-    five_par_transform, FixedPose, JointKind, JointSpec, LinkParams, SerialChain, Transform,
-};
+pub use chain::{LinkParams, SerialChain, Transform};
 pub use compiled::{joint_trig, ChainAt};
 pub use held::HeldChain;
-pub use ik::{solve_position_ik, solve_position_ik_at, IkError, IkOptions};
+pub use ik::{solve_position_ik, IkError, IkOptions};
+pub use ik_at::solve_position_ik_at;
+pub use joint::{JointKind, JointSpec};
 pub use params::{ErrorModel, ErrorParams, ParamId, ParamKind, ParamLayout, TransformId};
 pub use pose::{
-    difference, newton_inverse, newton_solve, numeric_pose_jacobian, wrap, JacobianFn,
-    KinematicsError, PoseFn, NEWTON_ITERATIONS, NEWTON_TOLERANCE,
+    difference, newton_inverse, newton_solve, numeric_pose_jacobian, wrap, KinematicsError,
+    NEWTON_ITERATIONS, NEWTON_TOLERANCE,
 };
 pub use spherical::{Spherical, SphericalFrame};
 

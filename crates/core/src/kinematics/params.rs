@@ -217,11 +217,6 @@ impl ErrorParams {
         Self { values }
     }
 
-    /// The values in layout order.
-    pub fn as_vector(&self) -> &DVector<f64> {
-        &self.values
-    }
-
     /// Mutable values in layout order.
     pub fn as_vector_mut(&mut self) -> &mut DVector<f64> {
         &mut self.values

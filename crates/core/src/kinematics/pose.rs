@@ -37,10 +37,10 @@ pub const NEWTON_TOLERANCE: f64 = 1e-9;
 pub const NEWTON_ITERATIONS: usize = 30;
 
 /// A pose as a function of the joint values, fallible.
-pub type PoseFn<'a> = dyn Fn(&[f64]) -> Result<Vec<f64>, KinematicsError> + 'a;
+pub(crate) type PoseFn<'a> = dyn Fn(&[f64]) -> Result<Vec<f64>, KinematicsError> + 'a;
 
 /// ∂S/∂Q as a function of the joint values, fallible.
-pub type JacobianFn<'a> = dyn Fn(&[f64]) -> Result<DMatrix<f64>, KinematicsError> + 'a;
+pub(crate) type JacobianFn<'a> = dyn Fn(&[f64]) -> Result<DMatrix<f64>, KinematicsError> + 'a;
 
 /// Wraps an angle to (−π, π].
 pub fn wrap(a: f64) -> f64 {

@@ -330,7 +330,7 @@ fn link_to(
 
 /// A link's mass (kg) and centre of mass in the frame at the end of the link (mm); None
 /// without mass.
-pub type LinkCom = Option<(f64, Vector3<f64>)>;
+type LinkCom = Option<(f64, Vector3<f64>)>;
 
 /// What a generated rig file is called and where it came from.
 #[derive(Debug, Clone, Copy)]
@@ -361,7 +361,7 @@ pub fn rig_file<E>(
 
 /// Each link's mass and centre of mass in its end frame of `five` (the chain's five-parameter
 /// form), from the URDF's base-frame centres at q = 0.
-pub fn link_coms(five: &SerialChain, c: &UrdfChain) -> Vec<LinkCom> {
+fn link_coms(five: &SerialChain, c: &UrdfChain) -> Vec<LinkCom> {
     let e = ErrorParams::zeros(five.layout());
     let q0 = vec![0.0; five.dof()];
     c.masses
@@ -393,7 +393,7 @@ fn pose_fields(p: &Isometry3<f64>) -> String {
 
 /// The rig file text of a converted chain with the given link masses (none: `&[]`). The
 /// measurement frame and the marker are free, as for a laser tracker or motion capture.
-pub fn rig_toml(names: &RigFileNames<'_>, c: &UrdfChain, coms: &[LinkCom]) -> String {
+fn rig_toml(names: &RigFileNames<'_>, c: &UrdfChain, coms: &[LinkCom]) -> String {
     let RigFileNames {
         name,
         source,

@@ -6,29 +6,33 @@
 //! serial port path (arm, panel), `can0` / `socketcan:can0` or `slcan:/dev/ttyACM0` (table).
 //! Nothing else differs between a dry run and the rig; no cargo feature chooses.
 //!
+//! Each device's driver comes from the registry ([`crate::devices::drivers`]) by the name the
+//! rig file gives it; the factory opens the transport or the driver's emulator and wraps what
+//! the driver returns, and names no driver itself.
+//!
 //! A session opens its rig with [`open_rig`]: the devices plus the opaque [`RigHook`] through
 //! which a dry run's world learns what the protocols do not carry (see [`crate::devices::hook`]).
 
 use std::sync::atomic::AtomicUsize;
 use std::sync::{Arc, Mutex};
 
-use crate::config::{DevicesConfig, TableConfig};
-use crate::devices::arm_movemaster::MovemasterArm;
 use crate::devices::clock::{RealClock, SharedClock, VirtualClock};
-use crate::devices::controller::CommandPath;
-use crate::devices::emulators::arm::{ArmEmulator, ArmFaultHandle};
-use crate::devices::emulators::panel::{PanelEmulator, PanelFaultHandle};
+use crate::devices::command_path::CommandPath;
+use crate::devices::config::{ArmConfig, DevicesConfig, TableConfig};
+use crate::devices::drivers::{self, Emulated};
+use crate::devices::emulators::faults::{ArmFaultHandle, PanelFaultHandle, TableFaultHandle};
+use crate::devices::emulators::physics::{NominalPhysics, SharedPhysics};
 use crate::devices::emulators::sensor::SimPointSensor;
-use crate::devices::emulators::table::{TableEmulator, TableFaultHandle};
 use crate::devices::emulators::{
-    NominalPhysics, PolledCan, PolledSerial, SharedPhysics, SharedTable, TableTruth,
+    ByteEmulator, FrameEmulator, PolledCan, PolledSerial, SharedTable, TableTruth,
 };
 use crate::devices::hook::{NoHook, RigHook};
-use crate::devices::panel_penmount::PenMountPanel;
+use crate::devices::keys::KeyError;
 use crate::devices::safety::{CartesianArm, LimitedArm, LimitedTable};
-use crate::devices::table_canopen::CanOpenTable;
 use crate::devices::traits::{Arm, DeviceError, DeviceName, Panel, PointSensor, Table};
-use crate::transports::{CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus};
+use crate::transports::{
+    ByteTransport, CanBus, FlowControl, Parity, SerialSettings, SerialTransport, SlcanBus,
+};
 use rigcal_core::rig::{Instrument, Rig, TablePanel};
 
 /// The simulated world the emulators use.
@@ -186,15 +190,16 @@ impl std::fmt::Debug for RigDevices {
     }
 }
 
-/// The three emulators of a rig, sharing one world.
+/// The emulators of a rig's three devices (each its driver's, from the registry) with their
+/// fault handles, sharing one world.
 #[derive(Debug)]
 pub struct SimEmulators {
-    /// The Movemaster controller.
-    pub arm: ArmEmulator,
-    /// The three drives.
-    pub table: TableEmulator,
-    /// The PenMount controller.
-    pub panel: PanelEmulator,
+    /// The arm's controller.
+    pub arm: Emulated<dyn ByteEmulator, ArmFaultHandle>,
+    /// The table's drives.
+    pub table: Emulated<dyn FrameEmulator, TableFaultHandle>,
+    /// The panel's controller.
+    pub panel: Emulated<dyn ByteEmulator, PanelFaultHandle>,
     /// The table's true motion.
     pub table_truth: SharedTable,
 }
@@ -210,18 +215,28 @@ pub fn table_panel(rig: &Rig) -> Result<&TablePanel, DeviceError> {
     }
 }
 
-/// Builds the three emulators for `rig` in `setup`'s world.
+/// A registry lookup's error as a device error.
+fn unknown(e: KeyError) -> DeviceError {
+    let (key, reason) = e;
+    DeviceError::Config { key, reason }
+}
+
+/// Builds the emulators of `rig`'s three devices (their drivers named in `cfg`) in `setup`'s
+/// world.
 pub fn sim_emulators(
     rig: &Rig,
     cfg: &DevicesConfig,
     setup: &SimSetup,
 ) -> Result<SimEmulators, DeviceError> {
     let tp = table_panel(rig)?;
+    let arm_driver = drivers::arm(&cfg.arm.driver).map_err(unknown)?;
+    let table_driver = drivers::table(&cfg.table.driver).map_err(unknown)?;
+    let panel_driver = drivers::panel(&cfg.panel.driver).map_err(unknown)?;
     let truth: SharedTable = Arc::new(Mutex::new(TableTruth::at(setup.table_start_mm)));
     Ok(SimEmulators {
-        arm: ArmEmulator::new(rig, &cfg.arm, Arc::clone(&setup.physics)),
-        table: TableEmulator::new(&cfg.table, Arc::clone(&truth)),
-        panel: PanelEmulator::new(
+        arm: arm_driver.emulator(rig, &cfg.arm, Arc::clone(&setup.physics)),
+        table: table_driver.emulator(&cfg.table, Arc::clone(&truth)),
+        panel: panel_driver.emulator(
             tp,
             &cfg.panel,
             Arc::clone(&setup.physics),
@@ -363,7 +378,7 @@ pub fn open_rig(
             })
         }
         None => {
-            let cfg = crate::config::DevicesConfig::read(&rig);
+            let cfg = DevicesConfig::read(rig);
             let all_sim = match &rig.instrument {
                 Instrument::TablePanel(_) => {
                     is_sim(&cfg.arm.transport)
@@ -399,40 +414,24 @@ pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErr
     }
 }
 
-/// The Movemaster arm over an emulator (`Some`) or the rig file's serial port.
+/// The rig file's arm driver over its emulator (`Some`) or the rig file's serial port, in the
+/// joint limits (which also check a Cartesian move's solution when the controller has one).
 fn open_arm(
     rig: &Rig,
-    cfg: &DevicesConfig,
-    emulator: Option<ArmEmulator>,
-    controls: Option<&mut SimControls>,
+    cfg: &ArmConfig,
+    emulator: Option<Box<dyn ByteEmulator>>,
     clock: &SharedClock,
 ) -> Result<Box<dyn Arm>, DeviceError> {
-    let kinematics = crate::devices::controller::ControllerKinematics::of_rig(rig).ok();
-    let driver =
-        |io: Box<dyn crate::transports::ByteTransport>| -> Result<Box<dyn Arm>, DeviceError> {
-            let arm = MovemasterArm::new(io, rig.chain.clone(), &cfg.arm, Arc::clone(clock))?;
-            Ok(match &kinematics {
-                Some(k) => Box::new(arm.with_controller(k.clone())),
-                None => Box::new(arm),
-            })
-        };
-    let arm: Box<dyn Arm> = match emulator {
-        Some(e) => {
-            if let Some(c) = controls {
-                c.arm = Some(e.faults());
-            }
-            driver(Box::new(PolledSerial::new(e, Arc::clone(clock))))?
-        }
-        None => driver(Box::new(open_serial(
-            "arm",
-            &cfg.arm.transport,
-            &cfg.arm.serial,
-        )?))?,
+    let driver = drivers::arm(&cfg.driver).map_err(unknown)?;
+    let io: Box<dyn ByteTransport> = match emulator {
+        Some(e) => Box::new(PolledSerial::new(e, Arc::clone(clock))),
+        None => Box::new(open_serial("arm", &cfg.transport, &cfg.serial)?),
     };
+    let opened = driver.open(rig, cfg, io, Arc::clone(clock))?;
     use rigcal_core::kinematics::Robot;
-    let limited = LimitedArm::new(arm, rig.chain.joints().to_vec());
-    Ok(match kinematics {
-        Some(k) => Box::new(limited.with_controller(k)),
+    let limited = LimitedArm::new(opened.arm, rig.chain.joints().to_vec());
+    Ok(match opened.cartesian {
+        Some(k) => Box::new(limited.with_cartesian(k)),
         None => Box::new(limited),
     })
 }
@@ -440,7 +439,7 @@ fn open_arm(
 /// A rig measured by a point sensor. No tracker driver exists yet: the sensor is simulated, so
 /// the arm must be too (a real arm beside a simulated sensor would measure nothing real).
 fn open_sensor_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
-    let cfg = crate::config::DevicesConfig::read(&rig);
+    let cfg = DevicesConfig::read(rig);
     cfg.validate()
         .map_err(|(key, reason)| DeviceError::Config { key, reason })?;
     let setup = match backend {
@@ -461,8 +460,13 @@ fn open_sensor_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErro
         table_truth: Arc::new(Mutex::new(TableTruth::at(setup.table_start_mm))),
         physics: Arc::clone(&setup.physics),
     };
-    let emulator = ArmEmulator::new(rig, &cfg.arm, Arc::clone(&setup.physics));
-    let arm = open_arm(rig, &cfg, Some(emulator), Some(&mut controls), &clock)?;
+    let emulated = drivers::arm(&cfg.arm.driver).map_err(unknown)?.emulator(
+        rig,
+        &cfg.arm,
+        Arc::clone(&setup.physics),
+    );
+    controls.arm = Some(emulated.faults);
+    let arm = open_arm(rig, &cfg.arm, Some(emulated.emulator), &clock)?;
     let sensor = SimPointSensor::new(Arc::clone(&setup.physics), Arc::clone(&clock));
     Ok(RigDevices {
         arm,
@@ -472,9 +476,23 @@ fn open_sensor_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceErro
     })
 }
 
+/// A device's emulator when the device is `simulated`, its fault handle put in `faults` (a real
+/// device has none).
+fn simulated<E: ?Sized, F>(
+    emulated: Option<Emulated<E, F>>,
+    simulated: bool,
+    faults: Option<&mut Option<F>>,
+) -> Option<Box<E>> {
+    let e = emulated.filter(|_| simulated)?;
+    if let Some(slot) = faults {
+        *slot = Some(e.faults);
+    }
+    Some(e.emulator)
+}
+
 /// The RV-M2 rig: arm, table and panel, each from the rig file or simulated.
 fn open_table_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
-    let cfg = crate::config::DevicesConfig::read(&rig);
+    let cfg = DevicesConfig::read(rig);
     cfg.validate()
         .map_err(|(key, reason)| DeviceError::Config { key, reason })?;
     let tp = table_panel(rig)?.clone();
@@ -511,53 +529,35 @@ fn open_table_rig(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError
         Some(e) => (Some(e.arm), Some(e.table), Some(e.panel)),
         None => (None, None, None),
     };
+    let emu_arm = simulated(emu_arm, sim_arm, controls.as_mut().map(|c| &mut c.arm));
+    let emu_table = simulated(
+        emu_table,
+        sim_table,
+        controls.as_mut().map(|c| &mut c.table),
+    );
+    let emu_panel = simulated(
+        emu_panel,
+        sim_panel,
+        controls.as_mut().map(|c| &mut c.panel),
+    );
 
-    let arm = open_arm(
-        rig,
-        &cfg,
-        emu_arm.filter(|_| sim_arm),
-        controls.as_mut(),
-        &clock,
-    )?;
-    let table: Box<dyn Table> = match emu_table.filter(|_| sim_table) {
-        Some(e) => {
-            if let Some(c) = controls.as_mut() {
-                c.table = Some(e.faults());
-            }
-            let bus = PolledCan::new(e, Arc::clone(&clock));
-            Box::new(CanOpenTable::new(bus, &cfg.table, Arc::clone(&clock))?)
-        }
-        None => Box::new(CanOpenTable::new(
-            open_can(&cfg.table)?,
-            &cfg.table,
-            Arc::clone(&clock),
+    let arm = open_arm(rig, &cfg.arm, emu_arm, &clock)?;
+    let table_driver = drivers::table(&cfg.table.driver).map_err(unknown)?;
+    let bus: Box<dyn CanBus> = match emu_table {
+        Some(e) => Box::new(PolledCan::new(e, Arc::clone(&clock))),
+        None => open_can(&cfg.table)?,
+    };
+    let table = table_driver.open(&cfg.table, bus, Arc::clone(&clock))?;
+    let panel_driver = drivers::panel(&cfg.panel.driver).map_err(unknown)?;
+    let io: Box<dyn ByteTransport> = match emu_panel {
+        Some(e) => Box::new(PolledSerial::new(e, Arc::clone(&clock))),
+        None => Box::new(open_serial(
+            "panel",
+            &cfg.panel.transport,
+            &cfg.panel.serial,
         )?),
     };
-    let panel: Box<dyn Panel> = match emu_panel.filter(|_| sim_panel) {
-        Some(e) => {
-            if let Some(c) = controls.as_mut() {
-                c.panel = Some(e.faults());
-            }
-            let io = PolledSerial::new(e, Arc::clone(&clock));
-            Box::new(PenMountPanel::new(
-                io,
-                tp.panel_size_mm,
-                tp.panel_counts,
-                &cfg.panel,
-                Arc::clone(&clock),
-            ))
-        }
-        None => {
-            let io = open_serial("panel", &cfg.panel.transport, &cfg.panel.serial)?;
-            Box::new(PenMountPanel::new(
-                io,
-                tp.panel_size_mm,
-                tp.panel_counts,
-                &cfg.panel,
-                Arc::clone(&clock),
-            ))
-        }
-    };
+    let panel = panel_driver.open(&tp, &cfg.panel, io, Arc::clone(&clock))?;
     Ok(RigDevices {
         arm,
         instrument: InstrumentDevices::TablePanel {

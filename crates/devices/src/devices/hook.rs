@@ -7,7 +7,7 @@
 //! journal (motion history for backlash and drift). The factory hands the session a
 //! [`RigHook`] beside the devices: on the real rig it is [`NoHook`], which does nothing; on
 //! emulators of a scenario's world it is the world's hook
-//! ([`WorldHook`](rigcal_sim::emulation::WorldHook)). The session journals
+//! (`rigcal_sim::emulation::WorldHook`, a layer above this one). The session journals
 //! [`RigHook::snapshot`] as opaque JSON and gives it back on a resume.
 
 /// A journalled snapshot the rig cannot take back.

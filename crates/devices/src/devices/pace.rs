@@ -32,7 +32,7 @@ use crate::devices::clock::SharedClock;
 pub const VIRTUAL_SLICE: Duration = Duration::from_millis(100);
 /// Longest slice of a device wait on real time: how long a device thread is busy with one
 /// wait before it takes the next request (a halt, a supervision check).
-pub const REAL_SLICE: Duration = Duration::from_millis(20);
+const REAL_SLICE: Duration = Duration::from_millis(20);
 
 /// The clock the devices keep, and how waits on it are made.
 #[derive(Debug, Clone)]

@@ -1,64 +1,141 @@
 //! Safety wrappers: limits that wrap any device and refuse a command before a byte is sent.
 //!
 //! - [`LimitedArm`]: every joint within the rig's joint limits (radians inside, degrees in
-//!   errors); a Cartesian move's target joints and the joints the controller's nominal inverse
-//!   kinematics give for the pose as sent (rounded) both checked.
+//!   errors); a Cartesian move's target joints and the joints the controller's own inverse
+//!   kinematics give for the pose as sent (its driver's [`CartesianSolver`]) both checked.
+//! - [`CartesianArm`]: every move through the controller's Cartesian command.
 //! - [`LimitedTable`]: every axis within the table travel 0..travel (mm, table frame), and z
 //!   ascending within a pass: after [`Table::begin_pass`], no move may go lower than the highest
 //!   z of the pass minus the rig file's `pass_retract_mm` (the z arm approaches from below).
+//!
+//! The two arm wrappers differ only in what they do with the moves: each is a [`GuardedArm`]
+//! with its own [`MoveRule`], and every other call reaches the wrapped arm through the one
+//! forwarding implementation there.
 
 use std::sync::atomic::{AtomicUsize, Ordering as AtomicOrdering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::devices::controller::ControllerKinematics;
 use crate::devices::traits::{Arm, ArmPose, ArmStatus, DeviceError, DeviceName, Table};
 use rigcal_core::kinematics::JointSpec;
 
-/// An [`Arm`] that refuses targets outside the joint limits.
-#[derive(Debug)]
-pub struct LimitedArm<A> {
-    inner: A,
-    joints: Vec<JointSpec>,
-    controller: Option<ControllerKinematics>,
+/// How an arm controller carries out a Cartesian move, so that [`LimitedArm`] can check the
+/// joints it will land on before anything is sent.
+pub trait CartesianSolver: Send + std::fmt::Debug {
+    /// The pose a Cartesian move to joints `q` (rad) is sent as (mm, deg, rounded as on the
+    /// wire), and the joints (rad) the controller's inverse kinematics solve for it from `q`,
+    /// or why there are none.
+    fn solve_command(&self, q: &[f64]) -> ([f64; 5], Result<Vec<f64>, String>);
 }
 
-impl<A: Arm> LimitedArm<A> {
+/// What an arm wrapper does with the moves; a [`GuardedArm`] passes every other call to the
+/// wrapped arm unchanged.
+pub trait MoveRule: Send {
+    /// A joint move to `q` on `arm`: started ([`Arm::start_move`]) or, with `whole`, waited for
+    /// to its end ([`Arm::move_to`]).
+    fn joint_move<A: Arm + ?Sized>(
+        &mut self,
+        arm: &mut A,
+        q: &[f64],
+        timeout: Duration,
+        whole: bool,
+    ) -> Result<Vec<f64>, DeviceError>;
+    /// A Cartesian move to joints `q` on `arm`, started ([`Arm::start_move_cartesian`]).
+    fn cartesian_move<A: Arm + ?Sized>(
+        &mut self,
+        arm: &mut A,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError>;
+}
+
+/// An [`Arm`] whose moves go through a [`MoveRule`].
+#[derive(Debug)]
+pub struct GuardedArm<A, R> {
+    inner: A,
+    rule: R,
+}
+
+impl<A: Arm, R: MoveRule> Arm for GuardedArm<A, R> {
+    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.inner.home(timeout)
+    }
+    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.set_speed(level, timeout)
+    }
+    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.rule.joint_move(&mut self.inner, q, timeout, true)
+    }
+    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
+        self.rule.joint_move(&mut self.inner, q, timeout, false)
+    }
+    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
+        self.inner.wait_moved(slice)
+    }
+    fn start_move_cartesian(
+        &mut self,
+        q: &[f64],
+        timeout: Duration,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.rule.cartesian_move(&mut self.inner, q, timeout)
+    }
+    fn commanded(&self) -> Option<Vec<f64>> {
+        self.inner.commanded()
+    }
+    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
+        self.inner.where_pose(timeout)
+    }
+    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
+        self.inner.status(timeout)
+    }
+    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.reset(timeout)
+    }
+}
+
+/// The rule of [`LimitedArm`]: the rig's joint limits, and the controller's Cartesian solutions
+/// checked against them.
+#[derive(Debug)]
+pub struct JointLimits {
+    joints: Vec<JointSpec>,
+    cartesian: Option<Box<dyn CartesianSolver>>,
+}
+
+/// An [`Arm`] that refuses targets outside the joint limits.
+pub type LimitedArm<A> = GuardedArm<A, JointLimits>;
+
+impl<A: Arm> GuardedArm<A, JointLimits> {
     /// Wraps `inner` with the limits of `joints`.
     pub fn new(inner: A, joints: Vec<JointSpec>) -> Self {
-        LimitedArm {
+        GuardedArm {
             inner,
-            joints,
-            controller: None,
+            rule: JointLimits {
+                joints,
+                cartesian: None,
+            },
         }
     }
 
-    /// Also checks Cartesian moves through the controller's nominal inverse kinematics.
-    pub fn with_controller(mut self, controller: ControllerKinematics) -> Self {
-        self.controller = Some(controller);
+    /// Also checks Cartesian moves through the controller's own inverse kinematics.
+    pub fn with_cartesian(mut self, solver: Box<dyn CartesianSolver>) -> Self {
+        self.rule.cartesian = Some(solver);
         self
     }
+}
 
+impl JointLimits {
     /// The joints a Cartesian move of `q` makes the controller solve for, checked.
     fn check_cartesian(&self, q: &[f64]) -> Result<(), DeviceError> {
         self.check(q)?;
-        let Some(k) = &self.controller else {
+        let Some(k) = &self.cartesian else {
             return Ok(());
         };
-        let pose = ControllerKinematics::rounded(&k.pose(q));
-        let solved = k.solve(&pose, q).map_err(|e| DeviceError::PoseRefused {
-            pose,
-            detail: e.to_string(),
-        })?;
+        let (pose, solved) = k.solve_command(q);
+        let solved = solved.map_err(|detail| DeviceError::PoseRefused { pose, detail })?;
         self.check(&solved).map_err(|e| DeviceError::PoseRefused {
             pose,
             detail: format!("the controller's solution: {e}"),
         })
-    }
-
-    /// The wrapped arm.
-    pub fn into_inner(self) -> A {
-        self.inner
     }
 
     fn check(&self, q: &[f64]) -> Result<(), DeviceError> {
@@ -84,44 +161,38 @@ impl<A: Arm> LimitedArm<A> {
     }
 }
 
-impl<A: Arm> Arm for LimitedArm<A> {
-    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.inner.home(timeout)
-    }
-    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
-        self.inner.set_speed(level, timeout)
-    }
-    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.check(q)?;
-        self.inner.move_to(q, timeout)
-    }
-    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.check(q)?;
-        self.inner.start_move(q, timeout)
-    }
-    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
-        self.inner.wait_moved(slice)
-    }
-    fn start_move_cartesian(
+impl MoveRule for JointLimits {
+    fn joint_move<A: Arm + ?Sized>(
         &mut self,
+        arm: &mut A,
+        q: &[f64],
+        timeout: Duration,
+        whole: bool,
+    ) -> Result<Vec<f64>, DeviceError> {
+        self.check(q)?;
+        if whole {
+            arm.move_to(q, timeout)
+        } else {
+            arm.start_move(q, timeout)
+        }
+    }
+
+    fn cartesian_move<A: Arm + ?Sized>(
+        &mut self,
+        arm: &mut A,
         q: &[f64],
         timeout: Duration,
     ) -> Result<Vec<f64>, DeviceError> {
         self.check_cartesian(q)?;
-        self.inner.start_move_cartesian(q, timeout)
+        arm.start_move_cartesian(q, timeout)
     }
-    fn commanded(&self) -> Option<Vec<f64>> {
-        self.inner.commanded()
-    }
-    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
-        self.inner.where_pose(timeout)
-    }
-    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
-        self.inner.status(timeout)
-    }
-    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
-        self.inner.reset(timeout)
-    }
+}
+
+/// The rule of [`CartesianArm`]: every move through the controller's Cartesian command, a
+/// refused pose through the joint command when a fallback counter is given.
+#[derive(Debug)]
+pub struct CartesianCommands {
+    joint_fallbacks: Option<Arc<AtomicUsize>>,
 }
 
 /// An [`Arm`] whose every move goes through the controller's Cartesian command: a session run
@@ -130,74 +201,60 @@ impl<A: Arm> Arm for LimitedArm<A> {
 /// solution the joint limits refuse before anything is sent (a pose within a few thousandths of
 /// a degree of a limit, rounded out of it) goes through the joint command (`MJ`) to the same
 /// joints instead, and is counted.
-#[derive(Debug)]
-pub struct CartesianArm<A> {
-    inner: A,
-    joint_fallbacks: Option<Arc<AtomicUsize>>,
-}
+pub type CartesianArm<A> = GuardedArm<A, CartesianCommands>;
 
-impl<A: Arm> CartesianArm<A> {
+impl<A: Arm> GuardedArm<A, CartesianCommands> {
     /// Wraps `inner`: every move through `MP`, a refused pose an error.
     pub fn new(inner: A) -> Self {
-        CartesianArm {
+        GuardedArm {
             inner,
-            joint_fallbacks: None,
+            rule: CartesianCommands {
+                joint_fallbacks: None,
+            },
         }
     }
 
     /// Wraps `inner`: every move through `MP`, a refused pose through `MJ`, counted in
     /// `fallbacks` (shared with the caller).
     pub fn with_joint_fallback(inner: A, fallbacks: Arc<AtomicUsize>) -> Self {
-        CartesianArm {
+        GuardedArm {
             inner,
-            joint_fallbacks: Some(fallbacks),
+            rule: CartesianCommands {
+                joint_fallbacks: Some(fallbacks),
+            },
         }
     }
 }
 
-impl<A: Arm> Arm for CartesianArm<A> {
-    fn home(&mut self, timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.inner.home(timeout)
-    }
-    fn set_speed(&mut self, level: u8, timeout: Duration) -> Result<(), DeviceError> {
-        self.inner.set_speed(level, timeout)
-    }
-    fn move_to(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        self.move_cartesian(q, timeout)
-    }
-    fn start_move(&mut self, q: &[f64], timeout: Duration) -> Result<Vec<f64>, DeviceError> {
-        match (
-            self.inner.start_move_cartesian(q, timeout),
-            &self.joint_fallbacks,
-        ) {
-            (Err(DeviceError::PoseRefused { .. }), Some(n)) => {
-                n.fetch_add(1, AtomicOrdering::Relaxed);
-                self.inner.start_move(q, timeout)
-            }
-            (other, _) => other,
-        }
-    }
-    fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
-        self.inner.wait_moved(slice)
-    }
-    fn start_move_cartesian(
+impl MoveRule for CartesianCommands {
+    /// Started as a pose; `whole`, its end waited for as [`Arm::move_cartesian`] does.
+    fn joint_move<A: Arm + ?Sized>(
         &mut self,
+        arm: &mut A,
+        q: &[f64],
+        timeout: Duration,
+        whole: bool,
+    ) -> Result<Vec<f64>, DeviceError> {
+        let done = self.cartesian_move(arm, q, timeout)?;
+        if whole {
+            while !arm.wait_moved(timeout)? {}
+        }
+        Ok(done)
+    }
+
+    fn cartesian_move<A: Arm + ?Sized>(
+        &mut self,
+        arm: &mut A,
         q: &[f64],
         timeout: Duration,
     ) -> Result<Vec<f64>, DeviceError> {
-        self.start_move(q, timeout)
-    }
-    fn commanded(&self) -> Option<Vec<f64>> {
-        self.inner.commanded()
-    }
-    fn where_pose(&mut self, timeout: Duration) -> Result<ArmPose, DeviceError> {
-        self.inner.where_pose(timeout)
-    }
-    fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError> {
-        self.inner.status(timeout)
-    }
-    fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
-        self.inner.reset(timeout)
+        match (arm.start_move_cartesian(q, timeout), &self.joint_fallbacks) {
+            (Err(DeviceError::PoseRefused { .. }), Some(n)) => {
+                n.fetch_add(1, AtomicOrdering::Relaxed);
+                arm.start_move(q, timeout)
+            }
+            (other, _) => other,
+        }
     }
 }
 

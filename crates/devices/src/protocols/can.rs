@@ -12,11 +12,11 @@ use std::fmt;
 use thiserror::Error;
 
 /// Largest standard (11-bit) identifier.
-pub const MAX_STANDARD_ID: u16 = 0x7FF;
+const MAX_STANDARD_ID: u16 = 0x7FF;
 /// Largest extended (29-bit) identifier.
-pub const MAX_EXTENDED_ID: u32 = 0x1FFF_FFFF;
+const MAX_EXTENDED_ID: u32 = 0x1FFF_FFFF;
 /// Largest payload of a classic CAN frame, in bytes.
-pub const MAX_DATA_LEN: usize = 8;
+const MAX_DATA_LEN: usize = 8;
 
 /// Why a [`CanFrame`] or [`CanId`] could not be built.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]

@@ -33,17 +33,15 @@ use thiserror::Error;
 use super::can::{CanFrame, CanFrameError, CanId};
 
 /// COB-ID of NMT commands.
-pub const COB_NMT: u16 = 0x000;
-/// COB-ID of SYNC (and base of EMCY).
-pub const COB_SYNC: u16 = 0x080;
+const COB_NMT: u16 = 0x000;
 /// Base COB-ID of EMCY (plus node id).
-pub const COB_EMCY: u16 = 0x080;
+const COB_EMCY: u16 = 0x080;
 /// Base COB-ID of SDO server → client (plus node id).
-pub const COB_SDO_TX: u16 = 0x580;
+const COB_SDO_TX: u16 = 0x580;
 /// Base COB-ID of SDO client → server (plus node id).
-pub const COB_SDO_RX: u16 = 0x600;
+const COB_SDO_RX: u16 = 0x600;
 /// Base COB-ID of heartbeat / boot-up (plus node id).
-pub const COB_HEARTBEAT: u16 = 0x700;
+const COB_HEARTBEAT: u16 = 0x700;
 
 /// Everything that can go wrong encoding or decoding CANopen messages.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -1058,8 +1056,6 @@ pub mod od {
     pub const IDENTITY: u16 = 0x1018;
     /// 0x1001 error register (UNSIGNED8).
     pub const ERROR_REGISTER: u16 = 0x1001;
-    /// 0x1016 consumer heartbeat time (array of UNSIGNED32).
-    pub const CONSUMER_HEARTBEAT_TIME: u16 = 0x1016;
     /// 0x1017 producer heartbeat time in ms (UNSIGNED16).
     pub const PRODUCER_HEARTBEAT_TIME: u16 = 0x1017;
     /// 0x603F error code (UNSIGNED16).
@@ -1147,10 +1143,6 @@ impl Statusword {
     pub fn fault(self) -> bool {
         self.bit(3)
     }
-    /// Bit 4: voltage enabled.
-    pub fn voltage_enabled(self) -> bool {
-        self.bit(4)
-    }
     /// Bit 7: warning.
     pub fn warning(self) -> bool {
         self.bit(7)
@@ -1162,10 +1154,6 @@ impl Statusword {
     /// Bit 10: target reached.
     pub fn target_reached(self) -> bool {
         self.bit(10)
-    }
-    /// Bit 11: internal limit active.
-    pub fn internal_limit(self) -> bool {
-        self.bit(11)
     }
     /// Bit 12 in profile position mode: set-point acknowledge.
     pub fn setpoint_acknowledge(self) -> bool {
@@ -1202,9 +1190,9 @@ impl Controlword {
     /// Bit 4: new set-point (profile position mode).
     pub const BIT_NEW_SETPOINT: u16 = 1 << 4;
     /// Bit 5: change set immediately.
-    pub const BIT_CHANGE_SET_IMMEDIATELY: u16 = 1 << 5;
+    const BIT_CHANGE_SET_IMMEDIATELY: u16 = 1 << 5;
     /// Bit 6: target is relative (1) or absolute (0).
-    pub const BIT_RELATIVE: u16 = 1 << 6;
+    const BIT_RELATIVE: u16 = 1 << 6;
     /// Bit 7: fault reset.
     pub const BIT_FAULT_RESET: u16 = 1 << 7;
     /// Bit 8: halt.
@@ -1228,10 +1216,6 @@ impl Controlword {
     /// Sets/clears bit 8 (halt).
     pub fn with_halt(self, on: bool) -> Self {
         self.with(Self::BIT_HALT, on)
-    }
-    /// True if bit 4 (new set-point) is set.
-    pub fn new_setpoint(self) -> bool {
-        self.0 & Self::BIT_NEW_SETPOINT != 0
     }
     /// True if bit 6 (relative) is set.
     pub fn relative(self) -> bool {

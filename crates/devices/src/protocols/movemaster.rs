@@ -56,7 +56,7 @@ pub const DEFAULT_MAX_LINE: usize = 128;
 /// Largest number of decimal places a [`Decimal`] or [`Resolution`] may have.
 pub const MAX_DECIMALS: u8 = 4;
 /// Largest magnitude of a [`Decimal`] mantissa (exclusive bound is 10^9).
-pub const MAX_MANTISSA: i64 = 999_999_999;
+const MAX_MANTISSA: i64 = 999_999_999;
 
 /// Everything that can go wrong encoding or decoding Movemaster lines.
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
@@ -276,11 +276,6 @@ impl Decimal {
             mantissa: 0,
             scale: resolution.decimals(),
         }
-    }
-
-    /// The integer mantissa.
-    pub fn mantissa(self) -> i64 {
-        self.mantissa
     }
 
     /// Number of decimal places.

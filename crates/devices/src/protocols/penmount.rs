@@ -28,17 +28,17 @@
 use thiserror::Error;
 
 /// Packet length in bytes.
-pub const PACKET_LEN: usize = 6;
+const PACKET_LEN: usize = 6;
 /// Largest raw x count the rig's panel reports.
-pub const MAX_X: u16 = 511;
+const MAX_X: u16 = 511;
 /// Largest raw y count the rig's panel reports.
-pub const MAX_Y: u16 = 255;
+const MAX_Y: u16 = 255;
 /// Header byte mask from `pm_parse_6000()`.
-pub const HEADER_MASK: u8 = 0xBF;
+const HEADER_MASK: u8 = 0xBF;
 /// Header byte value after masking.
-pub const HEADER_VALUE: u8 = 0x30;
+const HEADER_VALUE: u8 = 0x30;
 /// Touch flag in the header byte.
-pub const TOUCH_BIT: u8 = 0x40;
+const TOUCH_BIT: u8 = 0x40;
 
 /// Which coordinate a range error refers to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -104,7 +104,7 @@ pub fn checksum(first_five: &[u8; 5]) -> u8 {
 }
 
 /// True if `byte` passes the 6000 header test `(byte & 0xBF) == 0x30`.
-pub fn is_header(byte: u8) -> bool {
+fn is_header(byte: u8) -> bool {
     byte & HEADER_MASK == HEADER_VALUE
 }
 

@@ -18,11 +18,11 @@
 use crate::devices::contact::{Approach, Contact};
 use crate::devices::{DeviceError, DeviceName};
 use crate::session::core::{Outcome, SessionCore};
+use crate::session::error::SessionError;
 use crate::session::motion::{Motion, IO};
 use crate::session::plan::{approach_signs, table_target, via_pose, ContactSettings};
 use crate::session::procedure::ContactProcedure;
 use crate::session::recovery::{arm_move_lost, handle};
-use crate::session::run::SessionError;
 use rigcal_core::rig::{Instrument, Rig};
 
 /// Closer than this (mm) to where it should be, the table need not move.
@@ -64,7 +64,7 @@ fn bad_touch(detail: String) -> DeviceError {
 impl TableContact {
     /// `procedure` on `rig` with the final approach at `approach_mm_s`.
     pub fn new(rig: &Rig, approach_mm_s: f64, procedure: ContactProcedure) -> Self {
-        let cfg = crate::config::DevicesConfig::read(&rig);
+        let cfg = crate::devices::config::DevicesConfig::read(rig);
         TableContact {
             settings: ContactSettings::for_procedure(rig, procedure),
             travel_mm_s: cfg.table.profile_velocity_mm_s,

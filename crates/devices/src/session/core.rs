@@ -12,8 +12,10 @@ use nalgebra::Isometry3;
 use crate::devices::clock::SharedClock;
 use crate::devices::contact::Contact;
 use crate::devices::RigHook;
+use crate::session::error::SessionError;
 use crate::session::journal::{Journal, JournalError};
-use crate::session::run::{SessionError, SessionOptions, SessionReport};
+use crate::session::options::SessionOptions;
+use crate::session::report::SessionReport;
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::recording::{
     write_session, Measurement, RecordingWriter, RegistrationInfo, Status,
@@ -40,7 +42,9 @@ pub(crate) struct Registration {
     pub info: Option<RegistrationInfo>,
 }
 
-/// The session core (see the module docs).
+/// The session core (see the module docs). Thirteen fields: what a point's rows and the
+/// journal need of the session (rig, options, recording, time base, registration, where the
+/// devices stand, the report), held in one place so the procedures borrow one thing.
 pub(crate) struct SessionCore<'a> {
     pub rig: &'a Rig,
     pub opts: SessionOptions,
@@ -101,7 +105,7 @@ impl<'a> SessionCore<'a> {
     }
 
     /// Continues the session's time from `session_s` now (a resume).
-    pub fn continue_time(&mut self, session_s: f64) {
+    fn continue_time(&mut self, session_s: f64) {
         self.offset_s = session_s - self.clock.now().as_secs_f64();
         self.hook.time_base(self.offset_s);
     }

@@ -18,8 +18,9 @@
 
 use std::collections::VecDeque;
 
+use crate::session::error::SessionError;
 use crate::session::plan::{order_region, target_point, Ordering, PlannedPoint};
-use crate::session::{Session, SessionError};
+use crate::session::run::Session;
 use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::{Recording, Status};
 use rigcal_model::division::{MeasureError, Measurer};
@@ -75,7 +76,7 @@ pub struct SessionMeasurer<'s, 'r> {
 
 /// Layers this thin hold one point each: a batch's table z strictly ascends, as the
 /// recording shows it (thicker layers let z drop by up to a layer inside one).
-pub const STRICTLY_ASCENDING_MM: f64 = 1e-6;
+const STRICTLY_ASCENDING_MM: f64 = 1e-6;
 
 /// The order a session measures a batch of joint targets in, as indices into `qs`: ascending
 /// table z (`target` gives each one's table position) in layers of `layer_mm`, then x-y inside
@@ -121,14 +122,6 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
             layer_mm: STRICTLY_ASCENDING_MM,
             order: Ordering::ZThenXY,
         }
-    }
-
-    /// Orders batches by `order` within z layers of `layer_mm` (default: strictly ascending
-    /// table z, x-y breaking ties only).
-    pub fn with_order(mut self, order: Ordering, layer_mm: f64) -> Self {
-        self.order = order;
-        self.layer_mm = layer_mm;
-        self
     }
 
     /// Batches asked for so far (replayed ones included).
@@ -187,7 +180,8 @@ impl<'s, 'r> SessionMeasurer<'s, 'r> {
 impl SessionMeasurer<'_, '_> {
     /// Whether the recorded joints `recorded` answer a request for `asked` (see [`Self::replay`]).
     fn same_request(&self, recorded: &[f64], asked: &[f64]) -> bool {
-        let Some(arm) = crate::config::DevicesConfig::read_opt(self.rig).map(|d| d.arm) else {
+        let Some(arm) = crate::devices::config::DevicesConfig::read_opt(self.rig).map(|d| d.arm)
+        else {
             return recorded
                 .iter()
                 .zip(asked)
@@ -198,7 +192,8 @@ impl SessionMeasurer<'_, '_> {
             .iter()
             .zip(asked)
             .all(|(a, b)| (a - b).abs() <= half_step + 1e-9);
-        if joints_agree || arm.command_path != crate::devices::controller::CommandPath::Cartesian {
+        if joints_agree || arm.command_path != crate::devices::command_path::CommandPath::Cartesian
+        {
             return joints_agree;
         }
         let nominal = rigcal_core::kinematics::ErrorParams::zeros(self.rig.chain.layout());

@@ -270,14 +270,14 @@ impl Motion {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::devices::emulators::table::InjectedFault;
+    use crate::devices::emulators::faults::InjectedFault;
     use crate::devices::{open_rig, SimClock, SimControls};
     use rigcal_core::rig::Rig;
 
     fn rig() -> Rig {
         Rig::load(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/rigs/rv-m2.toml"
+            "/../../rigs/rv-m2.toml"
         )))
         .expect("the shipped rig file loads")
     }

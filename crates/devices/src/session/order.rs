@@ -14,7 +14,7 @@
 //! passes, each change kept only when it shortens the path and keeps the rule, until a pass
 //! finds nothing or the pass limit is hit. Deterministic: no random draws.
 
-use crate::session::plan::MoveTime;
+use crate::session::speeds::MoveTime;
 
 /// One point: joints and table (or marker) position.
 type Point = (Vec<f64>, [f64; 3]);
@@ -71,7 +71,7 @@ const EPS_MM: f64 = 1e-9;
 
 /// True when the points, as (contact z, low) in order, keep the rule: each low at least the
 /// running top of the contacts before it minus `window`.
-pub fn keeps_window(z_low: impl IntoIterator<Item = (f64, f64)>, window: f64) -> bool {
+fn keeps_window(z_low: impl IntoIterator<Item = (f64, f64)>, window: f64) -> bool {
     let mut top = f64::NEG_INFINITY;
     for (z, low) in z_low {
         if low < top - window - EPS_MM {

@@ -30,6 +30,7 @@ use rand::SeedableRng;
 
 use crate::devices::profile::Profile;
 use crate::session::procedure::{ContactProcedure, BASELINE_BACKOFF_MM};
+use crate::session::speeds::{largest_joint_change_deg, MoveTime, RigSpeeds};
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::rig::{Instrument, Rig, Unmeasurable};
 use rigcal_model::division::{Bounds, DivisionSpace, Space};
@@ -58,6 +59,14 @@ pub enum PlanError {
     /// A plan file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
+    /// A file beside the plan (its dropped candidates) could not be written.
+    #[error("writing {}", path.display())]
+    Write {
         /// The file.
         path: PathBuf,
         /// The cause.
@@ -160,80 +169,6 @@ impl std::str::FromStr for Ordering {
     }
 }
 
-/// The time the rig needs between two points (s), the metric [`Ordering::Optimised`] orders
-/// by: arm and table move together, so the slower counts — the table's x and y profiles
-/// (trapezoidal, at the rig file's velocity and accelerations) against the arm's largest joint
-/// change at its joint speed.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MoveTime {
-    /// Table profile velocity (mm/s); infinite on a rig without a table.
-    pub table_mm_s: f64,
-    /// Table acceleration (mm/s²).
-    pub table_acc: f64,
-    /// Table deceleration (mm/s²).
-    pub table_dec: f64,
-    /// Arm joint speed (deg/s); infinite to order by the table alone.
-    pub arm_deg_s: f64,
-}
-
-impl MoveTime {
-    /// The metric of `rig`'s devices (the table's terms only on the table rig).
-    pub fn of(rig: &Rig) -> MoveTime {
-        let s = RigSpeeds::of(rig);
-        let table = matches!(rig.instrument, Instrument::TablePanel(_));
-        MoveTime {
-            table_mm_s: if table { s.table_mm_s } else { f64::INFINITY },
-            table_acc: s.table_acc,
-            table_dec: s.table_dec,
-            arm_deg_s: s.arm_deg_s,
-        }
-    }
-
-    /// The table alone, on the default drive profile (for batches without joints).
-    pub fn table_only() -> MoveTime {
-        let t = crate::config::TableConfig::default();
-        MoveTime {
-            table_mm_s: t.profile_velocity_mm_s,
-            table_acc: t.profile_acceleration_mm_s2,
-            table_dec: t.profile_deceleration_mm_s2,
-            arm_deg_s: f64::INFINITY,
-        }
-    }
-
-    /// One axis's trapezoidal (or triangular) profile over `d` mm (s).
-    pub(crate) fn axis_s(&self, d: f64) -> f64 {
-        let d = d.abs();
-        if !self.table_mm_s.is_finite() || d == 0.0 {
-            return 0.0;
-        }
-        let (v, a, b) = (
-            self.table_mm_s,
-            self.table_acc.max(1e-9),
-            self.table_dec.max(1e-9),
-        );
-        // Distance to reach v and stop again.
-        let ramp = v * v / (2.0 * a) + v * v / (2.0 * b);
-        if d >= ramp {
-            v / a / 2.0 + v / b / 2.0 + d / v
-        } else {
-            // Triangular: peak speed w with w²/2a + w²/2b = d.
-            let w = (2.0 * d * a * b / (a + b)).sqrt();
-            w / a + w / b
-        }
-    }
-
-    /// From the point at (`qa`, `ta`) to the one at (`qb`, `tb`) (s).
-    pub fn between(&self, qa: &[f64], ta: &[f64; 3], qb: &[f64], tb: &[f64; 3]) -> f64 {
-        let table = self.axis_s(ta[0] - tb[0]).max(self.axis_s(ta[1] - tb[1]));
-        let arm = if self.arm_deg_s.is_finite() {
-            largest_joint_change_deg(qa, qb) / self.arm_deg_s.max(1e-9)
-        } else {
-            0.0
-        };
-        table.max(arm)
-    }
-}
-
 /// The z window of [`Ordering::Optimised`] on `rig` (mm): how far below an earlier point's
 /// nominal contact of its region a point's nominal contact may lie so that the table's pass
 /// rule holds. A point's locating approach ends `margin` above its nominal contact (the pass's
@@ -243,7 +178,7 @@ impl MoveTime {
 /// the table lower, the contact procedure starts a new pass (counted in the session report).
 pub fn z_window_mm(rig: &Rig) -> f64 {
     let c = ContactSettings::of(rig);
-    let retract = crate::config::DevicesConfig::read(&rig)
+    let retract = crate::devices::config::DevicesConfig::read(rig)
         .table
         .pass_retract_mm;
     (retract - 2.0 * c.margin_mm - c.clearance_mm).max(0.0)
@@ -703,7 +638,7 @@ pub const MIN_STANDOFF_MM: f64 = 0.05;
 
 /// The final approach's standoff for a locating approach at `locate_mm_s` with the touch read
 /// `latency_s` after contact, within `backoff_mm` (see [`ContactSettings::standoff_mm`]).
-pub fn final_standoff_mm(locate_mm_s: f64, latency_s: f64, backoff_mm: f64) -> f64 {
+fn final_standoff_mm(locate_mm_s: f64, latency_s: f64, backoff_mm: f64) -> f64 {
     (2.0 * locate_mm_s * latency_s)
         .max(MIN_STANDOFF_MM)
         .min(backoff_mm)
@@ -711,7 +646,7 @@ pub fn final_standoff_mm(locate_mm_s: f64, latency_s: f64, backoff_mm: f64) -> f
 
 impl Default for ContactSettings {
     fn default() -> Self {
-        ContactSettings::from_config(&crate::config::ContactConfig::default())
+        ContactSettings::from_config(&crate::devices::config::ContactConfig::default())
     }
 }
 
@@ -719,7 +654,7 @@ impl ContactSettings {
     /// The rig file's `[devices.contact]` (its defaults when the file has none), the standoff
     /// from its panel and bus latencies: rigcal's procedure.
     pub fn of(rig: &Rig) -> Self {
-        let cfg = crate::config::DevicesConfig::read(&rig);
+        let cfg = crate::devices::config::DevicesConfig::read(rig);
         let latency_s = (cfg.panel.latency_ms + cfg.table.bus_latency_ms).max(0.0) / 1000.0;
         let mut s = ContactSettings::from_config(&cfg.contact);
         s.standoff_mm = final_standoff_mm(s.fast_mm_s, latency_s, s.backoff_mm);
@@ -756,8 +691,8 @@ impl ContactSettings {
     }
 
     /// From the `[devices.contact]` section (the standoff from the default latencies).
-    pub fn from_config(c: &crate::config::ContactConfig) -> Self {
-        let d = crate::config::DevicesConfig::default();
+    pub fn from_config(c: &crate::devices::config::ContactConfig) -> Self {
+        let d = crate::devices::config::DevicesConfig::default();
         let latency_s = (d.panel.latency_ms + d.table.bus_latency_ms) / 1000.0;
         ContactSettings {
             standoff_mm: final_standoff_mm(c.locate_speed_mm_s, latency_s, c.backoff_mm),
@@ -770,51 +705,6 @@ impl ContactSettings {
             max_disagreement_mm: c.max_disagreement_mm,
             z_tolerance_mm: c.z_tolerance_mm,
             procedure: ContactProcedure::Rigcal,
-        }
-    }
-}
-
-/// The device speeds the rig-time estimate uses (from the rig file's `[devices]`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RigSpeeds {
-    /// Arm joint speed at the session's speed level (deg/s).
-    pub arm_deg_s: f64,
-    /// Table profile velocity (mm/s).
-    pub table_mm_s: f64,
-    /// Table acceleration (mm/s²).
-    pub table_acc: f64,
-    /// Table deceleration (mm/s²).
-    pub table_dec: f64,
-    /// Final approach speed (mm/s), from the latency rule.
-    pub approach_mm_s: f64,
-    /// The arm controller's reply latency (s).
-    pub arm_reply_s: f64,
-    /// The table's bus latency per CAN exchange (s).
-    pub bus_latency_s: f64,
-    /// Touch to first panel packet (s).
-    pub touch_latency_s: f64,
-}
-
-impl RigSpeeds {
-    /// From the rig file's device settings.
-    pub fn of(rig: &Rig) -> RigSpeeds {
-        let cfg = crate::config::DevicesConfig::read(&rig);
-        let lat = std::time::Duration::from_secs_f64(
-            (cfg.panel.latency_ms + cfg.table.bus_latency_ms).max(0.0) / 1000.0,
-        );
-        RigSpeeds {
-            arm_deg_s: cfg.arm.sim_joint_speed_deg_s * f64::from(cfg.arm.speed + 1) / 10.0,
-            table_mm_s: cfg.table.profile_velocity_mm_s,
-            table_acc: cfg.table.profile_acceleration_mm_s2,
-            table_dec: cfg.table.profile_deceleration_mm_s2,
-            approach_mm_s: crate::devices::contact::approach_speed(
-                lat,
-                std::time::Duration::ZERO,
-                cfg.panel.max_overshoot_mm,
-            ),
-            arm_reply_s: cfg.arm.sim_reply_ms / 1000.0,
-            bus_latency_s: cfg.table.bus_latency_ms / 1000.0,
-            touch_latency_s: cfg.panel.latency_ms / 1000.0,
         }
     }
 }
@@ -898,14 +788,6 @@ pub struct RigTimeEstimate {
     pub registration_points: usize,
     /// Where the time goes.
     pub breakdown: TimeBreakdown,
-}
-
-/// The largest joint change between `a` and `b` (deg).
-fn largest_joint_change_deg(a: &[f64], b: &[f64]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| (x - y).abs().to_degrees())
-        .fold(0.0, f64::max)
 }
 
 /// The height the table travels in x-y at (mm): a clearance below the current contact `here_z`
@@ -1053,7 +935,7 @@ pub fn estimate(
 ) -> RigTimeEstimate {
     let table_rig = matches!(rig.instrument, Instrument::TablePanel(_));
     // From the arm's nest, the table centred in x-y at the bottom of z (where it powers up).
-    let cfg = crate::config::DevicesConfig::read(&rig);
+    let cfg = crate::devices::config::DevicesConfig::read(rig);
     let nest = (cfg.arm.nest_deg.len() == rig.chain.joints().len())
         .then(|| cfg.arm.nest_deg.iter().map(|d| d.to_radians()).collect());
     let table_start = match &rig.instrument {

@@ -10,8 +10,8 @@
 
 use crate::devices::{DeviceError, DeviceName};
 use crate::session::core::{Outcome, SessionCore};
+use crate::session::error::SessionError;
 use crate::session::motion::{Motion, IO, MOVE};
-use crate::session::run::SessionError;
 use rigcal_core::recording::Status;
 
 /// Decides about `e` at attempt `attempt` of `stage`: `Ok(None)` to retry (after the backoff),

@@ -8,9 +8,9 @@ use nalgebra::{Isometry3, Vector3};
 
 use crate::session::contact::TableContact;
 use crate::session::core::{Outcome, SessionCore};
+use crate::session::error::SessionError;
 use crate::session::motion::Motion;
 use crate::session::plan::{registration_candidates, table_target};
-use crate::session::run::SessionError;
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::recording::{RegistrationInfo, Status};
 use rigcal_core::rig::Instrument;

@@ -20,7 +20,7 @@
 //! draws are keyed by (seed, seq, attempt) through the rig's hook, which the session cannot
 //! tell from the real rig's.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 use nalgebra::Vector3;
@@ -30,164 +30,22 @@ use crate::devices::pace::Pace;
 use crate::devices::{DeviceError, OpenedRig, RigHook};
 use crate::session::contact::TableContact;
 use crate::session::core::{Outcome, SessionCore};
+use crate::session::error::SessionError;
 use crate::session::journal::{Journal, JournalError};
 use crate::session::motion::{Motion, IO, MOVE};
+use crate::session::options::SessionOptions;
 use crate::session::plan::PlannedPoint;
-use crate::session::procedure::ContactProcedure;
 use crate::session::progress::Progress;
 use crate::session::registration::registration_step;
+use crate::session::report::SessionReport;
 use crate::session::sensor::SensorProcedure;
 use rigcal_core::kinematics::Robot;
-use rigcal_core::recording::{
-    as_recorded, RecordingError, RecordingWriter, RegistrationInfo, SessionInfo, Status,
-};
+use rigcal_core::recording::{as_recorded, RecordingWriter, Status};
 use rigcal_core::rig::Rig;
 use rigcal_model::identification::Observation;
 
 /// The recording's file name in a session directory.
 pub const CSV_FILE: &str = "measurements.csv";
-
-/// What stopped a session.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum SessionError {
-    /// A device failed in a way the session cannot clear by itself.
-    #[error("{stage}: {source}; the session stopped with every finished point saved: clear the cause, then run again with --resume")]
-    Device {
-        /// What the session was doing.
-        stage: String,
-        /// The device's error.
-        source: DeviceError,
-    },
-    /// The recording could not be written.
-    #[error(transparent)]
-    Recording(#[from] RecordingError),
-    /// The journal could not be written or read.
-    #[error(transparent)]
-    Journal(#[from] JournalError),
-    /// The registration step failed.
-    #[error("registration: {0}; check that the panel sees the pin at the registration poses")]
-    Registration(String),
-    /// `--resume` without a journal.
-    #[error("{dir}: no session journal to resume from; start a new session (without --resume)")]
-    NothingToResume {
-        /// The directory.
-        dir: PathBuf,
-    },
-    /// A new session would overwrite a recording.
-    #[error(
-        "{dir} already holds a recording; resume it with --resume or choose another directory"
-    )]
-    AlreadyExists {
-        /// The directory.
-        dir: PathBuf,
-    },
-    /// A resumed planning-mode session was asked for other joints than its recording holds.
-    #[error("point {point}: the division asks for joints {asked_deg:?}° where the recording holds {recorded_deg:?}°; resume with the same rig, scenario, seed and division options as the first run")]
-    ResumeDiverged {
-        /// 1-based point number.
-        point: usize,
-        /// Joints asked for (deg or mm).
-        asked_deg: Vec<f64>,
-        /// Joints recorded (deg or mm).
-        recorded_deg: Vec<f64>,
-    },
-    /// A resume was asked for another contact procedure than the session began with.
-    #[error("the session in {dir} began with the {journal} contact procedure; resume it with --procedure {journal} (or start a new session for {asked})")]
-    ProcedureDiffers {
-        /// The directory.
-        dir: PathBuf,
-        /// The journal's procedure.
-        journal: ContactProcedure,
-        /// The procedure asked for.
-        asked: ContactProcedure,
-    },
-    /// The session's runtime could not be started.
-    #[error("cannot start the session's runtime: {0}")]
-    Runtime(std::io::Error),
-    /// A file operation failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The cause.
-        source: std::io::Error,
-    },
-}
-
-/// How to run a session.
-#[derive(Debug, Clone)]
-pub struct SessionOptions {
-    /// Output directory (measurements.csv, session.toml, journal.json).
-    pub dir: PathBuf,
-    /// Continue the session in `dir` from its journal.
-    pub resume: bool,
-    /// Poses of the registration step.
-    pub registration_points: usize,
-    /// Attempts per point before it is skipped.
-    pub max_attempts: u32,
-    /// First retry backoff (doubles per attempt).
-    pub backoff: Duration,
-    /// Seed of the registration poses.
-    pub seed: u64,
-    /// fsync each row and the journal (on by default; a dry run on the virtual clock may turn it
-    /// off: a killed process loses nothing that was written).
-    pub fsync: bool,
-    /// What goes into session.toml besides the registration.
-    pub info: SessionInfo,
-    /// A registration to reuse (another session's, same rig set-up) instead of the
-    /// registration step: both recordings are then in one frame.
-    pub registration: Option<RegistrationInfo>,
-    /// The contact procedure on the table-and-panel rig (kept in the journal: a resume runs
-    /// the one the session began with).
-    pub procedure: ContactProcedure,
-}
-
-impl SessionOptions {
-    /// Defaults for a directory.
-    pub fn new(dir: &Path) -> Self {
-        SessionOptions {
-            dir: dir.to_path_buf(),
-            resume: false,
-            registration_points: 12,
-            max_attempts: 3,
-            backoff: Duration::from_millis(200),
-            seed: 1,
-            fsync: true,
-            info: SessionInfo::default(),
-            registration: None,
-            procedure: ContactProcedure::Rigcal,
-        }
-    }
-}
-
-/// What a session did.
-#[derive(Debug, Clone, Default)]
-pub struct SessionReport {
-    /// Planned points.
-    pub points: usize,
-    /// Points measured by this run (including earlier runs when resumed: see `resumed_at`).
-    pub ok: usize,
-    /// Points skipped, with the full reason.
-    pub skipped: Vec<(usize, String)>,
-    /// `via` rows written.
-    pub via: usize,
-    /// Retries made.
-    pub retries: usize,
-    /// Passes begun beyond one per region run, where the travel clearance had to go lower than
-    /// the ascending-z rule allows within a pass.
-    pub extra_passes: usize,
-    /// Faults cleared (drive fault reset, arm reset).
-    pub faults_cleared: Vec<String>,
-    /// Session time at the end (s): the rig time the session took (virtual clock on a dry run).
-    pub rig_time_s: f64,
-    /// Wall time of this run.
-    pub wall: Duration,
-    /// RMS of the registration fit (mm).
-    pub registration_rms_mm: Option<f64>,
-    /// The point index this run resumed at.
-    pub resumed_at: Option<usize>,
-}
 
 /// Runs (or resumes) a session over `points` on the rig the factory opened.
 pub fn run_session(
@@ -332,7 +190,7 @@ impl<'a> Run<'a> {
             source,
         })?;
         let csv = dir.join(CSV_FILE);
-        let cfg = crate::config::DevicesConfig::read(&rig);
+        let cfg = crate::devices::config::DevicesConfig::read(rig);
         motion
             .arm
             .run(MOVE, |a| a.home(MOVE))
@@ -410,7 +268,7 @@ impl<'a> Run<'a> {
     /// speed from the latency rule.
     async fn bring_up_table(
         motion: &mut Motion,
-        cfg: &crate::config::DevicesConfig,
+        cfg: &crate::devices::config::DevicesConfig,
     ) -> Result<f64, SessionError> {
         let table = motion.table().map_err(dev("enabling the table"))?;
         table

@@ -4,12 +4,12 @@
 
 use std::time::Duration;
 
-use crate::config::SensorConfig;
+use crate::devices::config::SensorConfig;
 use crate::session::core::{Outcome, SessionCore};
+use crate::session::error::SessionError;
 use crate::session::motion::Motion;
 use crate::session::plan::{approach_signs, via_pose};
 use crate::session::recovery::{arm_move_lost, handle};
-use crate::session::run::SessionError;
 use rigcal_core::rig::Rig;
 
 /// How the point-sensor procedure measures.
@@ -30,7 +30,7 @@ impl Default for SensorSettings {
 impl SensorSettings {
     /// The rig file's `[devices.sensor]` (its defaults when the file has none).
     pub fn of(rig: &Rig) -> Self {
-        SensorSettings::from_config(&crate::config::DevicesConfig::read(&rig).sensor)
+        SensorSettings::from_config(&crate::devices::config::DevicesConfig::read(rig).sensor)
     }
 
     /// From the `[devices.sensor]` section.

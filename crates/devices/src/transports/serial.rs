@@ -218,11 +218,6 @@ impl SerialTransport {
         }
     }
 
-    /// The underlying port (for modem lines, break, etc.).
-    pub fn port_mut(&mut self) -> &mut dyn SerialPort {
-        self.port.as_mut()
-    }
-
     fn set_timeout(&mut self, timeout: Duration) -> Result<(), TransportError> {
         if self.current_timeout != Some(timeout) {
             self.port.set_timeout(timeout).map_err(serial_error)?;

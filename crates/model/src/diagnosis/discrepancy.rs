@@ -8,129 +8,22 @@
 //!
 //! The term is a regression spline / radial-basis fit (the columns of [`super::shapes`]), so its
 //! fitted coefficients with the bases' knots and centres ([`DiscrepancyModel`]) reproduce it on
-//! any recording of the rig.
+//! any recording of the rig. The report types are in [`super::report`]; the simulated truth and
+//! scenario entry of the fitted term are [`crate::effects::discrepancy`].
 //!
 //! Units: mm for sizes, degrees (mm for prismatic joints) for joint errors and intervals,
 //! seconds for time.
 
-use super::effects::EffectInputs;
+use super::effects::{size_with_sigma, EffectInputs};
 use super::heldout::{heldout_rms, Heldout, HeldoutRecording, Terms};
 use super::linalg::{orth_basis, project_out, rms3};
+use super::report::{DiscrepancyModel, DiscrepancyReport, Region, ShapeReport};
 use super::select::{Chosen, ChosenShape};
 use super::shapes::{Form, ShapeSpec, Variable};
 use super::{Candidate, Data};
 use nalgebra::{DMatrix, DVector, Vector3};
 use rigcal_core::kinematics::{JointKind, Robot};
-use serde::{Deserialize, Serialize};
 use std::fmt::Write;
-
-/// A located residual no library effect explains, described by its shape.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ShapeReport {
-    /// What it depends on: `own_joint_angle`, `other_joint_angle`, `approach_direction`,
-    /// `time` or `position`.
-    pub depends_on: String,
-    /// The joint whose error it is (1-based), for joint-space shapes.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub joint: Option<usize>,
-    /// The joint whose angle it varies along (1-based), for joint-space shapes.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub driver_joint: Option<usize>,
-    /// `localised`, `periodic` or `smooth`.
-    pub form: String,
-    /// Cycles per 360° of a periodic shape.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub order: Option<u32>,
-    /// Where it is largest along the driving variable: where it reaches half its peak around
-    /// the peak (the whole range for a periodic shape), in `interval_unit`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub interval: Option<[f64; 2]>,
-    /// `deg`, `mm` or `s`.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub interval_unit: Option<String>,
-    /// Where it is largest in the workspace, for a position shape.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub region: Option<Region>,
-    /// Its largest value: joint error (degrees, or mm for a prismatic joint) or displacement
-    /// (mm).
-    pub peak: f64,
-    /// `deg` or `mm`.
-    pub peak_unit: String,
-    /// 3-D RMS over the measurements of its part the geometry cannot absorb (mm).
-    pub size_mm: f64,
-    /// Its standard deviation (mm).
-    pub size_sigma_mm: f64,
-    /// `size_mm` ÷ the noise floor.
-    pub size_over_floor: f64,
-    /// p-value of its partial F-test when chosen (before Bonferroni).
-    pub p_value: f64,
-    /// The flexible basis it was fitted with.
-    pub basis: String,
-    /// Plain language.
-    pub description: String,
-}
-
-/// A region of the workspace (world, mm).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Region {
-    /// Centre: the mean of the measured (modelled) positions where the shape reaches half its
-    /// peak, weighted by its square.
-    pub centre_mm: [f64; 3],
-    /// Their RMS distance from the centre.
-    pub radius_mm: f64,
-    /// Their bounding box, lower corner.
-    pub min_mm: [f64; 3],
-    /// Upper corner.
-    pub max_mm: [f64; 3],
-    /// How many measurements that is.
-    pub measurements: usize,
-}
-
-/// The discrepancy term: what it is made of and what it gains, apart from the named physics.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct DiscrepancyReport {
-    /// The shapes it is made of (labels).
-    pub terms: Vec<String>,
-    /// Its columns (coefficients fitted).
-    pub columns: usize,
-    /// 3-D RMS on the fitted data with the named effects only (mm).
-    pub rms_without_mm: f64,
-    /// The same with the discrepancy term (mm).
-    pub rms_with_mm: f64,
-    /// Held-out 3-D RMS with the named effects only (mm).
-    pub heldout_rms_without_mm: Option<f64>,
-    /// Held-out 3-D RMS with the discrepancy term too (mm).
-    pub heldout_rms_with_mm: Option<f64>,
-    /// What was held out.
-    pub heldout: String,
-    /// The fitted term, to evaluate it on other recordings (not written to the JSON report).
-    #[serde(skip)]
-    pub model: DiscrepancyModel,
-}
-
-/// A fitted discrepancy term: shape bases with their coefficients. The displacement is relative
-/// to the diagnosis's fitted geometry (joint-space shapes act through its joint Jacobian).
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-pub struct DiscrepancyModel {
-    /// The bases (knots, orders, centres fixed by the diagnosed recording).
-    pub shapes: Vec<ShapeSpec>,
-    /// Coefficients of each basis (rad, or mm for prismatic joints and Cartesian shapes).
-    pub coefficients: Vec<Vec<f64>>,
-}
-
-impl DiscrepancyModel {
-    /// The displacement (measured − modelled, mm) the term predicts at each measurement of `d`,
-    /// stacked 3 per measurement; zero for a basis the data cannot show.
-    pub fn displacement(&self, d: &Data) -> DVector<f64> {
-        let mut out = DVector::zeros(3 * d.len());
-        for (spec, c) in self.shapes.iter().zip(&self.coefficients) {
-            if let Some(x) = spec.columns(d) {
-                out += x * DVector::from_column_slice(c);
-            }
-        }
-        out
-    }
-}
 
 /// The shape descriptions and the discrepancy report.
 #[derive(Debug, Clone, Default)]
@@ -214,15 +107,11 @@ fn describe_shape(
     q_raw: &DMatrix<f64>,
     floor: f64,
 ) -> ShapeReport {
-    let m = d.len() as f64;
     let b = DVector::from_column_slice(beta);
     let c = &s.x * &b;
     let vis = project_out(q_raw, &DMatrix::from_column_slice(c.len(), 1, c.as_slice()));
     let vis = DVector::from_column_slice(vis.as_slice());
-    let size = (vis.norm_squared() / m).sqrt();
-    // Gradient of the size in the coefficients, for its σ by error propagation.
-    let g = s.x.transpose() * &vis / (m * size.max(1e-300));
-    let size_sigma = (g.transpose() * cov * &g)[(0, 0)].max(0.0).sqrt();
+    let (size, size_sigma) = size_with_sigma(&s.x, &vis, cov);
     let v = s.spec.variable;
     let mut r = ShapeReport {
         depends_on: v.key().into(),

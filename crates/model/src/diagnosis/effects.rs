@@ -98,11 +98,7 @@ fn effect_report(
     let cand = &lib[c.cand];
     let beta = DVector::from_column_slice(&coef);
     let xb = &c.x * &beta;
-    let m = d.len() as f64;
-    let size = (xb.norm_squared() / m).sqrt();
-    // Gradient of the size in the coefficients, for its σ by error propagation.
-    let g = c.x.transpose() * &xb / (m * size.max(1e-300));
-    let size_sigma = (g.transpose() * &cov * &g)[(0, 0)].max(0.0).sqrt();
+    let (size, size_sigma) = size_with_sigma(&c.x, &xb, &cov);
     let xbw = inp
         .screen
         .weigh(&DMatrix::from_column_slice(xb.len(), 1, xb.as_slice()));
@@ -121,7 +117,7 @@ fn effect_report(
         absorbed_fraction: 1.0 - visible_fraction,
         heldout_rms_with_mm: None,
         heldout_rms_without_mm: None,
-        kind: cand.kind().to_string(),
+        kind: cand.kind(),
         joint,
         axis,
         axes,
@@ -136,6 +132,18 @@ fn effect_report(
         explanation: cand.explanation(),
         not_separable_from: not_separable_from(c.cand, inp.candidates, lib),
     }
+}
+
+/// The size of a fitted term, the 3-D RMS over the measurements of its displacement `v`
+/// (stacked, 3 rows per measurement, mm), with its σ by error propagation from the covariance
+/// `cov` of the coefficients of its regressors `x` (`v` = `x`·β, or a part of it linear in β).
+pub fn size_with_sigma(x: &DMatrix<f64>, v: &DVector<f64>, cov: &DMatrix<f64>) -> (f64, f64) {
+    let m = (v.len() / 3) as f64;
+    let size = (v.norm_squared() / m).sqrt();
+    // Gradient of the size in the coefficients.
+    let g = x.transpose() * v / (m * size.max(1e-300));
+    let sigma = (g.transpose() * cov * &g)[(0, 0)].max(0.0).sqrt();
+    (size, sigma)
 }
 
 /// The report's `joint` (1-based), `axis` and `axes` fields.

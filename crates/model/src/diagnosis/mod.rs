@@ -9,7 +9,8 @@
 //!    test or the naming below finds one, Bonferroni corrected, α = 0.01 overall;
 //! 3. locate it ([`report::locate`]): axis, joint ranges, correlation with joint angle, approach
 //!    direction, time, table coordinate, gravity torque;
-//! 4. name it ([`select`]): candidates from the library (one file each) projected onto the
+//! 4. name it ([`select`]): candidates from the library (one file per effect, in
+//!    [`crate::effects`]) projected onto the
 //!    orthogonal complement of the geometric Jacobian, and flexible *shape bases* ([`shapes`]:
 //!    a joint's error along its own angle or another joint's, along its angle by approach
 //!    direction, a Cartesian error along time or across the workspace) beside them; forward
@@ -57,10 +58,7 @@
 //! compares with the RMS figures of [`ResidualStats`](crate::identification::ResidualStats).
 //! The diagnosis reads the recording and the rig only, never a simulated world.
 
-pub mod backlash;
-pub mod compliance;
 pub mod discrepancy;
-pub mod drift;
 pub mod effects;
 pub mod heldout;
 pub mod linalg;
@@ -74,16 +72,15 @@ pub mod screen;
 pub mod select;
 pub mod sessions;
 pub mod shapes;
-pub mod table_scale;
-pub mod table_squareness;
-pub mod transmission;
 pub mod unnamed;
 
-pub use discrepancy::{DiscrepancyModel, DiscrepancyReport, Region, ShapeReport};
-pub use report::{EffectReport, FitSummary, Mismatch, Report, WhereReport};
+pub use report::{
+    DiscrepancyModel, DiscrepancyReport, EffectReport, FitSummary, Mismatch, Region, Report,
+    ShapeReport, WhereReport,
+};
 
 use crate::identification::{fit_geometry, FitError, Level, Observation};
-use nalgebra::{DMatrix, Vector3};
+use nalgebra::DMatrix;
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain};
 use rigcal_core::recording::{Recording, Status};
 use rigcal_core::rig::Rig;
@@ -132,155 +129,7 @@ pub enum DiagnoseError {
     },
 }
 
-/// What a candidate's index refers to.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Index {
-    /// A joint (0-based inside, 1-based in reports).
-    Joint(usize),
-    /// A world/table axis (0 x, 1 y, 2 z).
-    Axis(usize),
-    /// A pair of table axes.
-    Axes(usize, usize),
-}
-
-/// Axis names.
-pub const AXES: [&str; 3] = ["x", "y", "z"];
-
-impl Index {
-    /// "joint 2", "axis z", "axes x–y".
-    pub fn label(&self) -> String {
-        match *self {
-            Index::Joint(j) => format!("joint {}", j + 1),
-            Index::Axis(a) => format!("axis {}", AXES[a]),
-            Index::Axes(a, b) => format!("axes {}–{}", AXES[a], AXES[b]),
-        }
-    }
-}
-
-/// One named parameter of a fitted effect: value and standard deviation in report units.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Param {
-    /// Name with unit, e.g. `lost_motion_deg`.
-    pub name: String,
-    /// Value.
-    pub value: f64,
-    /// Standard deviation (NaN when not available).
-    pub sigma: f64,
-}
-
-/// A piece of left-out physics the diagnosis can name: a small linear model whose regressor
-/// columns (3 rows per measurement, mm per unit coefficient) span what it can do to the
-/// measured points.
-pub trait Candidate: Send + Sync + std::fmt::Debug {
-    /// The report vocabulary's kind, e.g. `backlash`.
-    fn kind(&self) -> &'static str;
-    /// Which joint or axis.
-    fn index(&self) -> Index;
-    /// Harmonic order, for kinds that have one.
-    fn order(&self) -> Option<u32> {
-        None
-    }
-    /// A short label: "backlash on joint 2".
-    fn label(&self) -> String {
-        match self.order() {
-            Some(n) => format!("{} (order {n}) on {}", self.kind(), self.index().label()),
-            None => format!("{} on {}", self.kind(), self.index().label()),
-        }
-    }
-    /// The regressor columns over the recording's measurements, or None when the recording
-    /// cannot show this effect (no time, no table columns, a joint that never moves).
-    fn regressors(&self, d: &Data) -> Option<DMatrix<f64>>;
-    /// A plain-language explanation.
-    fn explanation(&self) -> String;
-    /// Named parameters from the fitted coefficients and their covariance.
-    fn params(&self, coef: &[f64], cov: &DMatrix<f64>, d: &Data) -> Vec<Param>;
-}
-
-/// Everything a candidate may use: the recording's measurements and the fitted geometry.
-#[derive(Debug, Clone)]
-pub struct Data {
-    /// The chain (with the fitted frame when the frame is free).
-    pub chain: SerialChain,
-    /// The fitted geometric error parameters.
-    pub e: ErrorParams,
-    /// Measurements (joint values, measured point).
-    pub obs: Vec<Observation>,
-    /// Time (s) of each measurement, when the recording has it for every measured row.
-    pub t_s: Option<Vec<f64>>,
-    /// Approach direction (−1, 0, +1) of each joint at each measurement.
-    pub direction: Vec<Vec<i8>>,
-    /// Table-frame coordinates of each measurement, when every measured row has them.
-    pub table: Option<Vec<Vector3<f64>>>,
-    /// Region of each measurement.
-    pub region: Vec<Option<String>>,
-    /// Joint Jacobian (3 × N, mm per rad) at each measurement.
-    pub joint_jacobian: Vec<DMatrix<f64>>,
-    /// Joints that move in the recording (0-based).
-    pub moving: Vec<usize>,
-    /// `seq` of each measurement.
-    pub seq: Vec<u64>,
-    /// CSV line of each measurement (1-based), when the recording was read from a file.
-    pub line: Vec<Option<u64>>,
-}
-
-impl Data {
-    /// Measurements.
-    pub fn len(&self) -> usize {
-        self.obs.len()
-    }
-
-    /// True without measurements.
-    pub fn is_empty(&self) -> bool {
-        self.obs.is_empty()
-    }
-
-    /// A subset of the measurements (indices into `obs`).
-    pub fn subset(&self, idx: &[usize]) -> Data {
-        Data {
-            chain: self.chain.clone(),
-            e: self.e.clone(),
-            obs: idx.iter().map(|&i| self.obs[i].clone()).collect(),
-            t_s: self
-                .t_s
-                .as_ref()
-                .map(|t| idx.iter().map(|&i| t[i]).collect()),
-            direction: idx.iter().map(|&i| self.direction[i].clone()).collect(),
-            table: self
-                .table
-                .as_ref()
-                .map(|t| idx.iter().map(|&i| t[i]).collect()),
-            region: idx.iter().map(|&i| self.region[i].clone()).collect(),
-            joint_jacobian: idx
-                .iter()
-                .map(|&i| self.joint_jacobian[i].clone())
-                .collect(),
-            moving: self.moving.clone(),
-            seq: idx.iter().map(|&i| self.seq[i]).collect(),
-            line: idx.iter().map(|&i| self.line[i]).collect(),
-        }
-    }
-
-    /// Columns `scale(i) · joint column j` stacked over measurements.
-    pub fn joint_column(&self, j: usize, scale: impl Fn(usize) -> f64) -> DMatrix<f64> {
-        let mut m = DMatrix::zeros(3 * self.len(), 1);
-        for i in 0..self.len() {
-            let s = scale(i);
-            for r in 0..3 {
-                m[(3 * i + r, 0)] = s * self.joint_jacobian[i][(r, j)];
-            }
-        }
-        m
-    }
-
-    /// Columns `scale(i) · unit vector of axis a` stacked over measurements.
-    pub fn axis_column(&self, a: usize, scale: impl Fn(usize) -> f64) -> DMatrix<f64> {
-        let mut m = DMatrix::zeros(3 * self.len(), 1);
-        for i in 0..self.len() {
-            m[(3 * i + a, 0)] = scale(i);
-        }
-        m
-    }
-}
+pub use crate::effects::{Candidate, Data, Index, Param, AXES};
 
 /// The candidate library for a joint count: every kind on every joint or axis (compliance with
 /// the generic unit-mass model).
@@ -302,38 +151,7 @@ fn library_with_masses(
     dof: usize,
     masses: Option<std::sync::Arc<Vec<Option<rigcal_core::rig::LinkMass>>>>,
 ) -> Vec<Box<dyn Candidate>> {
-    let mut v: Vec<Box<dyn Candidate>> = Vec::new();
-    for j in 0..dof {
-        v.push(Box::new(compliance::JointCompliance {
-            joint: j,
-            masses: masses.clone(),
-        }));
-        v.push(Box::new(backlash::Backlash { joint: j }));
-        for n in 1..=transmission::MAX_ORDER {
-            v.push(Box::new(transmission::TransmissionError {
-                joint: j,
-                order: n,
-            }));
-        }
-        v.push(Box::new(drift::ThermalDrift {
-            target: Index::Joint(j),
-        }));
-    }
-    for a in 0..3 {
-        v.push(Box::new(drift::ThermalDrift {
-            target: Index::Axis(a),
-        }));
-    }
-    for a in 0..3 {
-        v.push(Box::new(table_scale::TableScale { axis: a }));
-    }
-    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        v.push(Box::new(table_squareness::TableSquareness {
-            first: a,
-            second: b,
-        }));
-    }
-    v
+    crate::effects::candidates(dof, &masses)
 }
 
 /// Options of a diagnosis.
@@ -365,14 +183,14 @@ pub struct Standard {
 }
 
 /// Harmonics of the panel's quantisation error modelled as nuisance.
-pub const QUANTISATION_HARMONICS: usize = 3;
+const QUANTISATION_HARMONICS: usize = 3;
 
 /// The panel's quantisation error as nuisance columns. A panel count rounds the pin's true
 /// offset u from the panel centre to its cell's centre, so the error is a sawtooth of u with the
 /// cell width w as period. The table goes to the *nominal* tip, so u is the arm's error there —
 /// a smooth function of the pose — and the sawtooth of a smooth function is itself structured:
 /// smooth candidates and the shape bases would pick up part of it. The columns are
-/// sin(2πk·û/w) and cos(2πk·û/w), k = 1..[`QUANTISATION_HARMONICS`], on the x and the y rows,
+/// sin(2πk·û/w) and cos(2πk·û/w), k = 1..3 (`QUANTISATION_HARMONICS`), on the x and the y rows,
 /// û the offset the fitted model predicts (modelled tip − panel centre, the panel centre being
 /// the table-frame point minus the reported (u, v)). Empty when the recording is not quantised
 /// or lacks the table and panel columns.
@@ -419,7 +237,7 @@ pub fn quantisation_nuisance(rig: &Rig, rec: &Recording, data: &Data) -> DMatrix
 /// on the data so a simulation with quantisation switched off is not penalised; without panel
 /// columns the rig's panel is assumed to quantise. Table axes are parallel to the world axes
 /// (the registration is a translation, `rigs/rv-m2.toml`).
-pub fn quantisation_variance(rig: &Rig, rec: &Recording) -> ([f64; 3], Option<String>) {
+fn quantisation_variance(rig: &Rig, rec: &Recording) -> ([f64; 3], Option<String>) {
     let rigcal_core::rig::Instrument::TablePanel(tp) = &rig.instrument else {
         return ([0.0; 3], None);
     };

@@ -5,8 +5,8 @@
 //! 3·(n_g − 1) degrees of freedom per group. With at least [`MIN_PURE_ERROR_DOF`] degrees of
 //! freedom it estimates σ² per coordinate, and the lack-of-fit F-test compares the residual
 //! beyond pure error with it (plus the instrument's known quantisation variance, which a repeated
-//! pose reads identically and so cannot show). Otherwise the diagnosis falls back to per-term tests against the
-//! residual variance (and says so).
+//! pose reads identically and so cannot show). Otherwise the diagnosis falls back to per-term
+//! tests against the residual variance (and says so).
 //!
 //! [`MIN_PURE_ERROR_DOF`]: super::MIN_PURE_ERROR_DOF
 
@@ -34,7 +34,7 @@ impl PureError {
 }
 
 /// Indices of measurements grouped by identical commanded joints (groups of two or more).
-pub fn replicate_groups(d: &Data) -> Vec<Vec<usize>> {
+fn replicate_groups(d: &Data) -> Vec<Vec<usize>> {
     let mut map: BTreeMap<Vec<u64>, Vec<usize>> = BTreeMap::new();
     for (i, o) in d.obs.iter().enumerate() {
         map.entry(o.q.iter().map(|v| v.to_bits()).collect())

@@ -9,9 +9,10 @@
 
 use super::linalg::{hcat, lstsq, rows_of, rows_of_vector};
 use super::refit::Refit;
-use super::select::Selection;
+use super::select::{select_terms, Selection};
 use super::{Candidate, Data, Standard};
 use crate::identification::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
+use crate::identification::{IdentifyOptions, StructureJudge};
 use nalgebra::DMatrix;
 use nalgebra::Vector3;
 use std::convert::Infallible;
@@ -77,6 +78,20 @@ fn design_on(
 /// Rounds of "find the structure, judge outliers against it, find it again without them".
 const STRUCTURE_ROUNDS: usize = 2;
 
+/// [`outliers_against_structure`] as identification's [`StructureJudge`] (the diagnosis's
+/// failure to model the recording as text).
+const STRUCTURE_JUDGE: StructureJudge =
+    |rig, rec, settings| outliers_against_structure(rig, rec, settings).map_err(|e| e.to_string());
+
+/// [`IdentifyOptions`] whose outliers are judged against the structure the diagnosis finds
+/// where the geometric judgement alone cannot decide: what `rigcal identify` does.
+pub fn identify_options() -> IdentifyOptions {
+    IdentifyOptions {
+        structure: Some(STRUCTURE_JUDGE),
+        ..IdentifyOptions::default()
+    }
+}
+
 /// Outliers of a recording judged against the structure the diagnosis finds in it — geometry
 /// (every identifiable parameter), named effects and the discrepancy term — rather than against
 /// a geometric fit that leaves that structure in the residual, where its largest rows look like
@@ -100,7 +115,7 @@ pub fn outliers_against_structure(
             row.status = rigcal_core::recording::Status::Via;
         }
         let std = super::standard_fit(rig, &work)?;
-        let sel = super::pipeline::select_terms(&std, &lib)?;
+        let sel = select_terms(&std, &lib)?;
         // Judged on every measured row: the rows set aside to find the structure are back,
         // predicted by it.
         let all = super::prepare(&std.data.chain, &std.data.e, rec)?;

@@ -3,9 +3,9 @@
 //! discrepancy term → outliers, then the report.
 //!
 //! Error budget, α = [`ALPHA`](super::ALPHA) overall, split in three equal parts
-//! ([`ALPHA_PART`](super::screen::ALPHA_PART)): the candidate steps (Bonferroni over the
-//! candidates remaining at each step), the shape bases (Bonferroni over the bases, and only when
-//! sizeable) and the final lack-of-fit test against pure error.
+//! ([`ALPHA_PART`]): the candidate steps (Bonferroni over the candidates remaining at each step),
+//! the shape bases (Bonferroni over the bases, and only when sizeable) and the final lack-of-fit
+//! test against pure error.
 //!
 //! Units: stacked residuals in mm (3 rows per measurement); coefficients in each candidate's
 //! units (see the candidate files).
@@ -17,7 +17,7 @@ use super::linalg::rms3;
 use super::outliers::judge_outliers;
 use super::refit::{refit, Refit};
 use super::report::{locate, FitSummary, Mismatch, Report, WhereReport};
-use super::screen::{mismatch_remains, screen, Screen};
+use super::screen::{screen, Screen, ALPHA_PART};
 use super::select::{build_shapes, forward_selection, project_candidates, Selection};
 use super::unnamed::{test_leftover, Leftover};
 use super::{Candidate, DiagnoseError, Standard, MIN_PURE_ERROR_DOF};
@@ -76,6 +76,14 @@ pub fn run(
         fit: fit_summary(std, &screen, &named, effects.heldout),
     };
     Ok((report, outliers))
+}
+
+/// Whether a mismatch remains after the geometric fit: an effect was named, something is left
+/// unexplained, or the geometry alone fails its lack-of-fit test.
+fn mismatch_remains(screen: &Screen, selection: &Selection, leftover: &Leftover) -> bool {
+    !selection.chosen.is_empty()
+        || leftover.unexplained()
+        || screen.lack_of_fit_p.is_some_and(|p| p < ALPHA_PART)
 }
 
 /// How the diagnosis read this recording.
@@ -173,21 +181,4 @@ fn fit_summary(std: &Standard, screen: &Screen, refit: &Refit, heldout: Heldout)
         heldout_after_rms_mm: heldout.after,
         heldout: heldout.what,
     }
-}
-
-/// The library effects and shapes forward selection chooses on a standard fit, without the
-/// report: what [`super::outliers::outliers_against_structure`] judges rows against.
-pub fn select_terms(
-    std: &Standard,
-    lib: &[Box<dyn Candidate>],
-) -> Result<Selection, DiagnoseError> {
-    let screen = screen(std)?;
-    let candidates = project_candidates(&screen, lib, &std.data);
-    let mut shapes = build_shapes(&screen, &std.data);
-    Ok(forward_selection(
-        &screen,
-        &candidates,
-        &mut shapes,
-        &std.data,
-    ))
 }

@@ -8,12 +8,22 @@ use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
 use std::path::Path;
 
+/// The residual of the geometric fit against one variable, per axis (for evidence plots).
+#[derive(Debug, Clone)]
+pub struct ResidualSeries {
+    /// What the x axis is (`joint 2 (deg)`, `time (s)`).
+    pub label: String,
+    /// The joint (1-based), when it is a joint.
+    pub joint: Option<usize>,
+    /// x values.
+    pub x: Vec<f64>,
+    /// Residual (x, y, z) per point (mm).
+    pub residual: Vec<[f64; 3]>,
+}
+
 /// The residual of the geometric fit against each moving joint (degrees, or mm) and time,
 /// for the HTML report's evidence plots.
-pub fn residual_series(
-    rig: &Rig,
-    rec: &Recording,
-) -> Result<Vec<crate::report::html::ResidualSeries>, DiagnoseError> {
+pub fn residual_series(rig: &Rig, rec: &Recording) -> Result<Vec<ResidualSeries>, DiagnoseError> {
     let std = standard_fit(rig, rec)?;
     let d = &std.data;
     let r = residual_of(d);
@@ -24,7 +34,7 @@ pub fn residual_series(
     let mut out: Vec<_> = d
         .moving
         .iter()
-        .map(|&j| crate::report::html::ResidualSeries {
+        .map(|&j| ResidualSeries {
             label: format!("joint {} ({})", j + 1, joints[j].kind.unit()),
             joint: Some(j + 1),
             x: d.obs
@@ -35,7 +45,7 @@ pub fn residual_series(
         })
         .collect();
     if let Some(t) = &d.t_s {
-        out.push(crate::report::html::ResidualSeries {
+        out.push(ResidualSeries {
             label: "time (s)".into(),
             joint: None,
             x: t.clone(),

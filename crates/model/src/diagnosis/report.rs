@@ -3,9 +3,10 @@
 //!
 //! Units: mm for sizes and RMS (3-D RMS over measurements), degrees for joint ranges.
 
-use super::compliance::unit_torques;
-use super::discrepancy::{DiscrepancyReport, ShapeReport};
+use super::shapes::ShapeSpec;
 use super::{Data, AXES};
+use crate::effects::compliance::unit_torques;
+use crate::effects::EffectKind;
 use nalgebra::DVector;
 use rigcal_core::kinematics::{JointKind, Robot};
 use serde::{Deserialize, Serialize};
@@ -87,11 +88,11 @@ pub struct WhereReport {
     pub correlates_with: Vec<(String, f64)>,
 }
 
-/// One named effect.
+/// One named effect (17 fields: the report format's, spec/recordings.md).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct EffectReport {
     /// The vocabulary's kind.
-    pub kind: String,
+    pub kind: EffectKind,
     /// Joint, 1-based.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub joint: Option<usize>,
@@ -132,6 +133,115 @@ pub struct EffectReport {
     pub explanation: String,
     /// Candidates these poses cannot tell apart from this one ("X or Y").
     pub not_separable_from: Vec<String>,
+}
+
+/// A located residual no library effect explains, described by its shape (16 fields: the
+/// report format's, spec/recordings.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShapeReport {
+    /// What it depends on: `own_joint_angle`, `other_joint_angle`, `approach_direction`,
+    /// `time` or `position`.
+    pub depends_on: String,
+    /// The joint whose error it is (1-based), for joint-space shapes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joint: Option<usize>,
+    /// The joint whose angle it varies along (1-based), for joint-space shapes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub driver_joint: Option<usize>,
+    /// `localised`, `periodic` or `smooth`.
+    pub form: String,
+    /// Cycles per 360° of a periodic shape.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub order: Option<u32>,
+    /// Where it is largest along the driving variable: where it reaches half its peak around
+    /// the peak (the whole range for a periodic shape), in `interval_unit`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval: Option<[f64; 2]>,
+    /// `deg`, `mm` or `s`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub interval_unit: Option<String>,
+    /// Where it is largest in the workspace, for a position shape.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub region: Option<Region>,
+    /// Its largest value: joint error (degrees, or mm for a prismatic joint) or displacement
+    /// (mm).
+    pub peak: f64,
+    /// `deg` or `mm`.
+    pub peak_unit: String,
+    /// 3-D RMS over the measurements of its part the geometry cannot absorb (mm).
+    pub size_mm: f64,
+    /// Its standard deviation (mm).
+    pub size_sigma_mm: f64,
+    /// `size_mm` ÷ the noise floor.
+    pub size_over_floor: f64,
+    /// p-value of its partial F-test when chosen (before Bonferroni).
+    pub p_value: f64,
+    /// The flexible basis it was fitted with.
+    pub basis: String,
+    /// Plain language.
+    pub description: String,
+}
+
+/// A region of the workspace (world, mm).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Region {
+    /// Centre: the mean of the measured (modelled) positions where the shape reaches half its
+    /// peak, weighted by its square.
+    pub centre_mm: [f64; 3],
+    /// Their RMS distance from the centre.
+    pub radius_mm: f64,
+    /// Their bounding box, lower corner.
+    pub min_mm: [f64; 3],
+    /// Upper corner.
+    pub max_mm: [f64; 3],
+    /// How many measurements that is.
+    pub measurements: usize,
+}
+
+/// The discrepancy term: what it is made of and what it gains, apart from the named physics.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DiscrepancyReport {
+    /// The shapes it is made of (labels).
+    pub terms: Vec<String>,
+    /// Its columns (coefficients fitted).
+    pub columns: usize,
+    /// 3-D RMS on the fitted data with the named effects only (mm).
+    pub rms_without_mm: f64,
+    /// The same with the discrepancy term (mm).
+    pub rms_with_mm: f64,
+    /// Held-out 3-D RMS with the named effects only (mm).
+    pub heldout_rms_without_mm: Option<f64>,
+    /// Held-out 3-D RMS with the discrepancy term too (mm).
+    pub heldout_rms_with_mm: Option<f64>,
+    /// What was held out.
+    pub heldout: String,
+    /// The fitted term, to evaluate it on other recordings (not written to the JSON report).
+    #[serde(skip)]
+    pub model: DiscrepancyModel,
+}
+
+/// A fitted discrepancy term: shape bases with their coefficients. The displacement is relative
+/// to the diagnosis's fitted geometry (joint-space shapes act through its joint Jacobian).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct DiscrepancyModel {
+    /// The bases (knots, orders, centres fixed by the diagnosed recording).
+    pub shapes: Vec<ShapeSpec>,
+    /// Coefficients of each basis (rad, or mm for prismatic joints and Cartesian shapes).
+    pub coefficients: Vec<Vec<f64>>,
+}
+
+impl DiscrepancyModel {
+    /// The displacement (measured − modelled, mm) the term predicts at each measurement of `d`,
+    /// stacked 3 per measurement; zero for a basis the data cannot show.
+    pub fn displacement(&self, d: &Data) -> DVector<f64> {
+        let mut out = DVector::zeros(3 * d.len());
+        for (spec, c) in self.shapes.iter().zip(&self.coefficients) {
+            if let Some(x) = spec.columns(d) {
+                out += x * DVector::from_column_slice(c);
+            }
+        }
+        out
+    }
 }
 
 /// RMS before and after.

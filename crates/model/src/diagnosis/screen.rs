@@ -1,14 +1,12 @@
 //! Stage 1, the screen: the standard model as the tests see it (geometry and the instrument's
 //! nuisance columns, rows weighted by their noise), the noise floor from pure error, and the
-//! lack of fit of the geometry alone; and, once the later stages have run, the decision whether
-//! a mismatch remains.
+//! lack of fit of the geometry alone (which [`super::pipeline`] weighs, once the later stages
+//! have run, in deciding whether a mismatch remains).
 //!
 //! Units: stacked residuals in mm (3 rows per measurement).
 
 use super::linalg::{hcat, orth_basis, scale_rows};
 use super::noise::{lack_of_fit, pure_error, PureError};
-use super::select::Selection;
-use super::unnamed::Leftover;
 use super::{DiagnoseError, Standard, ALPHA, MIN_PURE_ERROR_DOF};
 use nalgebra::{DMatrix, DVector};
 
@@ -27,7 +25,8 @@ pub struct Screen {
     pub pure_error: PureError,
     /// Whether pure error has enough degrees of freedom to be the noise floor.
     pub use_pure_error: bool,
-    /// Weight of each row in the tests (see [`row_weights`]).
+    /// Weight of each row in the tests: 1/σ of its axis, scaled so rows without instrument
+    /// variance keep weight 1 (all 1 when the instrument adds nothing).
     pub weights: Vec<f64>,
     /// Orthonormal basis of the weighted model.
     pub basis: DMatrix<f64>,
@@ -121,7 +120,7 @@ pub fn screen(std: &Standard) -> Result<Screen, DiagnoseError> {
 /// Row weights of the tests: 1/√(σ² + q_a²) for the rows of axis a, scaled so z-like rows keep
 /// weight 1, with q_a² the instrument's known variance and σ² the rest of the noise (pure error,
 /// else the residual of the unquantised axes). All 1 when the instrument adds nothing.
-pub fn row_weights(std: &Standard, pe: &PureError, use_pe: bool, r0: &DVector<f64>) -> Vec<f64> {
+fn row_weights(std: &Standard, pe: &PureError, use_pe: bool, r0: &DVector<f64>) -> Vec<f64> {
     let n = r0.len();
     let q = std.instrument_var;
     if q.iter().all(|v| *v <= 0.0) {
@@ -140,12 +139,4 @@ pub fn row_weights(std: &Standard, pe: &PureError, use_pe: bool, r0: &DVector<f6
     }
     .max(1e-12);
     (0..n).map(|k| (s2 / (s2 + q[k % 3])).sqrt()).collect()
-}
-
-/// Whether a mismatch remains after the geometric fit: an effect was named, something is left
-/// unexplained, or the geometry alone fails its lack-of-fit test.
-pub fn mismatch_remains(screen: &Screen, selection: &Selection, leftover: &Leftover) -> bool {
-    !selection.chosen.is_empty()
-        || leftover.unexplained()
-        || screen.lack_of_fit_p.is_some_and(|p| p < ALPHA_PART)
 }

@@ -12,9 +12,9 @@
 //! Units: stacked regressors in mm per unit coefficient (3 rows per measurement).
 
 use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
-use super::screen::{Screen, ALPHA_PART};
+use super::screen::{screen, Screen, ALPHA_PART};
 use super::shapes::{refine_position, shape_bases, Form, ShapeSpec};
-use super::{Candidate, Data, SEPARABLE_CORRELATION};
+use super::{Candidate, Data, DiagnoseError, Standard, SEPARABLE_CORRELATION};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
 /// The candidate library over one recording, seen past the standard model.
@@ -233,7 +233,7 @@ fn term_test(
 /// shape many: a library effect the data show exactly wins on p-value, an unknown shape wins
 /// over the library terms that each soak up part of it. When a shape joined, every term is then
 /// tested again given all the others and the least significant that fails is dropped, until none
-/// fails ([`prune`]): library terms chosen before the shape that only soaked it up go.
+/// fails (`prune`): library terms chosen before the shape that only soaked it up go.
 pub fn forward_selection(
     screen: &Screen,
     cands: &Candidates,
@@ -328,6 +328,24 @@ pub fn forward_selection(
         prune(screen, &mut sel, cands, shapes);
     }
     sel
+}
+
+/// The library effects and shapes forward selection chooses on a standard fit, from the screen
+/// on and without the report: what [`super::outliers::outliers_against_structure`] judges rows
+/// against.
+pub fn select_terms(
+    std: &Standard,
+    lib: &[Box<dyn Candidate>],
+) -> Result<Selection, DiagnoseError> {
+    let screen = screen(std)?;
+    let candidates = project_candidates(&screen, lib, &std.data);
+    let mut shapes = build_shapes(&screen, &std.data);
+    Ok(forward_selection(
+        &screen,
+        &candidates,
+        &mut shapes,
+        &std.data,
+    ))
 }
 
 /// Adds the orthonormal direction(s) `u` (orthogonal to the model) to the selection's model.
@@ -464,7 +482,7 @@ fn best_shape(
 
 /// The 3 × 3 diagonal blocks H_ii = Q_i Q_iᵀ of the hat matrix of the orthonormal basis `q`,
 /// one per measurement (the blocks of orthogonal bases side by side add).
-pub fn hat_blocks(q: &DMatrix<f64>) -> Vec<Matrix3<f64>> {
+fn hat_blocks(q: &DMatrix<f64>) -> Vec<Matrix3<f64>> {
     (0..q.nrows() / 3)
         .map(|i| {
             let b = q.rows(3 * i, 3);
@@ -477,7 +495,7 @@ pub fn hat_blocks(q: &DMatrix<f64>) -> Vec<Matrix3<f64>> {
 /// The leave-one-measurement-out prediction error (PRESS) of a model with hat blocks `hat`
 /// ([`hat_blocks`]) and residual `r`: Σ_i ‖(I − H_ii)⁻¹ r_i‖². A measurement the model can only
 /// fit with its own coefficients (leverage near 1) counts as unpredicted.
-pub fn press(hat: &[Matrix3<f64>], r: &DVector<f64>) -> f64 {
+fn press(hat: &[Matrix3<f64>], r: &DVector<f64>) -> f64 {
     let mut total = 0.0;
     for (i, h) in hat.iter().enumerate() {
         let m = Matrix3::identity() - h;

@@ -4,7 +4,7 @@
 //! A held-out session predicted through the training session's measurement frame measures the
 //! frame shift as much as the kinematics. Here the kinematic parameters of a fit are kept and
 //! only the measurement frame (and, if asked, the marker) is refitted on each held-out session
-//! ([`refit_frame`], [`heldout_sessions`]): what is left is what the kinematics predict.
+//! ([`heldout_sessions`]): what is left is what the kinematics predict.
 //!
 //! Training on several sessions ([`fit_sessions`]) fits one set of kinematic parameters and one
 //! frame per session, by alternation: fit on the first session, refit each other session's frame
@@ -23,7 +23,7 @@ use crate::identification::outliers::Outlier;
 use crate::identification::registration::kabsch;
 use crate::identification::{
     errors, fit, identify, identify_at, FitError, FitOptions, FitResult, HeldOut, IdentifyError,
-    IdentifyOptions, Level, ResidualStats,
+    Level, ResidualStats,
 };
 use nalgebra::{DMatrix, DVector, Isometry3, Vector3};
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain, TransformId};
@@ -51,7 +51,7 @@ impl PerSession {
     }
 
     /// Layout indices of the parameters refitted.
-    pub fn indices(self, chain: &SerialChain) -> Vec<usize> {
+    fn indices(self, chain: &SerialChain) -> Vec<usize> {
         chain
             .layout()
             .ids()
@@ -102,7 +102,7 @@ pub enum SessionError {
 /// registration (Kabsch), so a session whose frame moved far still converges; the returned
 /// transform `g` is that registration (measured = g · registered) and the fit is on the
 /// registered points.
-pub fn refit_frame(
+fn refit_frame(
     chain: &SerialChain,
     params: &ErrorParams,
     obs: &[Observation],
@@ -224,7 +224,7 @@ pub fn clean_session(rig: &Rig, session: &HeldOut) -> Result<CleanSession, Sessi
         rig,
         &session.recording,
         Level::Full,
-        &IdentifyOptions::default(),
+        &crate::diagnosis::outliers::identify_options(),
     )?;
     let mut recording = session.recording.clone();
     for o in &id.outliers {

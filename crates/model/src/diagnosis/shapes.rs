@@ -3,7 +3,7 @@
 //!
 //! Each basis is one *located variable* with one flexible form:
 //! - a joint's error as a function of its **own angle** (cubic B-splines; for a revolute joint
-//!   also harmonics of orders above the library's, [`PERIODIC_ORDERS`]): columns f_k(q_j)·J_j;
+//!   also harmonics of orders above the library's, 5 and 12): columns f_k(q_j)·J_j;
 //! - a joint's error as a function of **another joint's angle** (cubic B-splines in q_k):
 //!   columns f_m(q_k)·J_j;
 //! - a joint's error that flips with its **approach direction** and varies along its angle
@@ -37,8 +37,8 @@ use rigcal_core::kinematics::{JointKind, Robot};
 use serde::{Deserialize, Serialize};
 
 /// Harmonic orders of the periodic own-angle basis: above the library's transmission errors
-/// (orders 1 to [`super::transmission::MAX_ORDER`]).
-pub const PERIODIC_ORDERS: [u32; 2] = [5, 12];
+/// (orders 1 to [`crate::effects::transmission::MAX_ORDER`]).
+const PERIODIC_ORDERS: [u32; 2] = [5, 12];
 
 /// What a shape depends on (joints 0-based inside, 1-based in reports).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -295,7 +295,7 @@ fn radial_form(d: &Data, k: usize) -> Form {
 }
 
 /// The modelled tip position of each measurement (mm).
-pub fn modelled_positions(d: &Data) -> Vec<Vector3<f64>> {
+fn modelled_positions(d: &Data) -> Vec<Vector3<f64>> {
     d.obs.iter().map(|o| d.chain.position(&o.q, &d.e)).collect()
 }
 

@@ -76,7 +76,9 @@ pub enum Mode<'a> {
     Offline(&'a [Observation]),
 }
 
-/// Settings of the division; defaults are the paper's.
+/// Settings of the division; defaults are the paper's. Seventeen fields, flat on purpose: each is
+/// one independent knob of the procedure (demand, caps, designs, priors, tests) that callers set
+/// by name with `..Default::default()`; grouping them would only add a level to every call.
 #[derive(Debug, Clone)]
 pub struct DivisionOptions {
     /// Joint or Cartesian (spherical) division.

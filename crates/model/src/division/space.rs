@@ -9,7 +9,7 @@ use rigcal_core::rig::Rig;
 use serde::{Deserialize, Serialize};
 
 /// Which space the workspace is divided in.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Space {
     /// The major joints (q1, q2, q3 for the RV-M2).

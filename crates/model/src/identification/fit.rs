@@ -11,15 +11,16 @@
 //! further only samples rounding noise).
 //!
 //! Speed (2 200 measurements, 15 parameters, a few milliseconds): a serial chain is evaluated
-//! multiplied out at each parameter set ([`rigcal_core::kinematics::ChainAt`]) with the joints' sines
-//! and cosines computed once; the data rows of J fill one buffer reused by every pass, from
-//! which JᵀJ and Jᵀr are one product each; trial steps evaluate positions only; κ goes through
-//! the QR factor of J.
+//! multiplied out at each parameter set ([`rigcal_core::kinematics::ChainAt`], through
+//! `robot_at`) with the joints' sines and cosines computed once; the data rows of J fill
+//! one buffer reused by every pass, from which JᵀJ and Jᵀr are one product each; trial steps
+//! evaluate positions only; κ goes through the QR factor of J.
 
 use super::dense::{gram, transpose_times};
 use super::identifiability::kappa_eq4;
+use super::robot_at::Kinematics;
 use nalgebra::{DMatrix, DVector, Vector3};
-use rigcal_core::kinematics::{joint_trig, ChainAt, ErrorParams, Robot};
+use rigcal_core::kinematics::{joint_trig, ErrorParams, Robot};
 
 // Observations come from recordings; identification reads them.
 pub use rigcal_core::recording::Observation;
@@ -163,74 +164,6 @@ pub fn fit(
 pub fn errors(robot: &dyn Robot, obs: &[Observation], e: &ErrorParams) -> Vec<Vector3<f64>> {
     let k = Kinematics::at(robot, e);
     obs.iter().map(|o| o.p - k.position(&o.q)).collect()
-}
-
-/// A robot at fixed error parameters: a serial chain multiplied out ([`ChainAt`]), any other
-/// robot through its [`Robot`] methods.
-pub(crate) enum Kinematics<'a> {
-    /// A serial chain, allocation-free.
-    Chain(ChainAt),
-    /// Any robot.
-    Generic(&'a dyn Robot, ErrorParams),
-}
-
-impl<'a> Kinematics<'a> {
-    /// `robot` at parameters `e`.
-    pub(crate) fn at(robot: &'a dyn Robot, e: &ErrorParams) -> Self {
-        match robot.as_serial_chain() {
-            Some(chain) => Kinematics::Chain(chain.at(e)),
-            None => Kinematics::Generic(robot, e.clone()),
-        }
-    }
-
-    /// The measured point at joint values `q`.
-    pub(crate) fn position(&self, q: &[f64]) -> Vector3<f64> {
-        match self {
-            Kinematics::Chain(c) => c.position(q),
-            Kinematics::Generic(r, e) => r.position(q, e),
-        }
-    }
-
-    /// [`Kinematics::position`] with the joints' sines and cosines when known.
-    pub(crate) fn position_trig(&self, q: &[f64], trig: Option<&[[f64; 2]]>) -> Vector3<f64> {
-        match (self, trig) {
-            (Kinematics::Chain(c), Some(t)) => c.position_trig(q, t),
-            _ => self.position(q),
-        }
-    }
-
-    /// [`Kinematics::position_and_columns`] with the joints' sines and cosines when known.
-    pub(crate) fn position_and_columns_trig(
-        &self,
-        q: &[f64],
-        trig: Option<&[[f64; 2]]>,
-        columns: &[usize],
-        out: &mut [Vector3<f64>],
-    ) -> Vector3<f64> {
-        match (self, trig) {
-            (Kinematics::Chain(c), Some(t)) => c.position_and_columns_trig(q, t, columns, out),
-            _ => self.position_and_columns(q, columns, out),
-        }
-    }
-
-    /// The measured point and the Jacobian columns of the layout indices `columns` in `out`.
-    pub(crate) fn position_and_columns(
-        &self,
-        q: &[f64],
-        columns: &[usize],
-        out: &mut [Vector3<f64>],
-    ) -> Vector3<f64> {
-        match self {
-            Kinematics::Chain(c) => c.position_and_columns(q, columns, out),
-            Kinematics::Generic(r, e) => {
-                let (p, m) = r.position_and_param_jacobian(q, e);
-                for (o, &i) in out.iter_mut().zip(columns) {
-                    *o = m.fixed_view::<3, 1>(0, i).into_owned();
-                }
-                p
-            }
-        }
-    }
 }
 
 /// The Gauss–Newton normal equations of a fit at one parameter set: JᵀJ, Jᵀr and the cost

@@ -1,6 +1,8 @@
 //! The geometric fit of a rig's error parameters to observations: the free-frame start, the
 //! identifiability analysis and the Levenberg–Marquardt fit, in that order. Both
-//! [`identify`](super::identify) and the diagnosis's standard model run it.
+//! [`identify`](super::identify) and the diagnosis's standard model run it; [`identify_at`] runs
+//! it at a [`Level`] and returns absolute parameters, the fit every refit of the outlier search
+//! ([`super::incremental`]) equals.
 //!
 //! With a free measurement frame the fit starts from the closed-form registration (Kabsch) of
 //! the nominal arm to the measured points: the *started* chain carries that registration as its
@@ -119,6 +121,47 @@ pub fn fit_geometry(
         identifiability,
         nominal: free_frame.then(|| rig.chain.clone()),
     })
+}
+
+/// Why an identification failed.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum IdentifyError {
+    /// The recording has no measured rows.
+    #[error("the recording has no measured rows (status ok with x_mm, y_mm, z_mm)")]
+    NoMeasurements,
+    /// The level leaves no parameter to fit on this rig.
+    #[error("nothing to fit at level {level:?}: the rig's measurement frame and marker are fixed (set them free in [calibration] or use --level full)")]
+    NothingToFit {
+        /// The level asked for.
+        level: Level,
+    },
+    /// The least-squares fit failed.
+    #[error("identification failed")]
+    Fit(#[source] FitError),
+    /// A held-out recording has no measured rows.
+    #[error("held-out recording {name}: no measured rows")]
+    HeldOutEmpty {
+        /// Its name.
+        name: String,
+    },
+}
+
+/// Fits observations at a level: the rig's chain and the fit with absolute frame parameters.
+pub fn identify_at(
+    rig: &Rig,
+    obs: &[Observation],
+    level: Level,
+) -> Result<(SerialChain, FitResult), IdentifyError> {
+    if obs.is_empty() {
+        return Err(IdentifyError::NoMeasurements);
+    }
+    let candidates = level.candidates(rig);
+    if candidates.is_empty() {
+        return Err(IdentifyError::NothingToFit { level });
+    }
+    let geometric = fit_geometry(rig, obs, &candidates).map_err(IdentifyError::Fit)?;
+    Ok(geometric.into_absolute())
 }
 
 /// Rewrites the fitted frame parameters of a chain whose nominal frame was a start value as

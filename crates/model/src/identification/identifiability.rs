@@ -1,6 +1,6 @@
 //! Which error parameters position measurements can identify.
 //!
-//! [M] is stacked over poses (3 rows per pose, one column per parameter) at the nominal
+//! \[M\] is stacked over poses (3 rows per pose, one column per parameter) at the nominal
 //! parameters. Columns are scaled to unit 2-norm so millimetres and radians compare. The rank is
 //! the number of singular values above `RANK_TOL` · σ_max. The basis is chosen by Gram–Schmidt
 //! in a priority order (conventions §4): a column enters when what is left of it after the
@@ -8,9 +8,9 @@
 //! effect on the measured point at all, or its column is a combination of basis columns — the
 //! coefficients of that combination are its null-space vector, reported in parameter units.
 //!
-//! κ is eq. (4): κ([M]) = ‖MᵀM‖·‖(MᵀM)⁻¹‖ = (σ_max/σ_min)² of the scaled basis columns.
+//! κ is eq. (4): κ(\[M\]) = ‖MᵀM‖·‖(MᵀM)⁻¹‖ = (σ_max/σ_min)² of the scaled basis columns.
 
-use super::fit::Kinematics;
+use super::robot_at::Kinematics;
 use nalgebra::{DMatrix, DVector, Vector3};
 use rigcal_core::kinematics::{ErrorParams, ParamId, ParamLayout, Robot, TransformId};
 use rigcal_core::rig::{FrameMode, Rig};
@@ -23,7 +23,7 @@ const NO_EFFECT_TOL: f64 = 1e-9;
 /// The outcome of an identifiability analysis.
 #[derive(Debug, Clone)]
 pub struct Identifiability {
-    /// Numerical rank of [M] over the candidate parameters.
+    /// Numerical rank of \[M\] over the candidate parameters.
     pub rank: usize,
     /// Layout indices of the identifiable basis, in the order chosen.
     pub basis: Vec<usize>,
@@ -74,7 +74,7 @@ fn is_kinematic(id: ParamId) -> bool {
     !matches!(id.transform, TransformId::Frame | TransformId::Marker)
 }
 
-/// Stacks [M] (3 rows per pose) over the given layout columns at parameters `e`.
+/// Stacks \[M\] (3 rows per pose) over the given layout columns at parameters `e`.
 pub fn stacked_jacobian(
     robot: &dyn Robot,
     e: &ErrorParams,
@@ -100,20 +100,15 @@ pub fn analyse(robot: &dyn Robot, poses: &[Vec<f64>], candidates: &[usize]) -> I
     analyse_factor(&triangular_factor(m), poses.len(), candidates)
 }
 
-/// [`analyse`] on [M] already stacked at the nominal parameters (3 rows per pose, one column
-/// per candidate, in priority order).
+/// [`analyse`] from any matrix R with RᵀR = \[M\]ᵀ\[M\] (its triangular factor, say), \[M\] stacked
+/// at the nominal parameters over `poses` poses (3 rows per pose, one column per candidate, in
+/// priority order).
 ///
-/// Every decision depends on [M] only through the inner products of its columns, so it is
-/// taken on the triangular factor R of [M] = Q·R (Householder, backward stable column by
-/// column like the SVD of [M], so the column scaling may follow it): the singular values, the
-/// Gram–Schmidt residuals and the least-squares combinations of R equal those of [M] up to
+/// Every decision depends on \[M\] only through the inner products of its columns, so it is
+/// taken on the triangular factor R of \[M\] = Q·R (Householder, backward stable column by
+/// column like the SVD of \[M\], so the column scaling may follow it): the singular values, the
+/// Gram–Schmidt residuals and the least-squares combinations of R equal those of \[M\] up to
 /// rounding, at a fraction of the cost.
-pub fn analyse_jacobian(m: &DMatrix<f64>, candidates: &[usize]) -> Identifiability {
-    analyse_factor(&triangular_factor(m.clone()), m.nrows() / 3, candidates)
-}
-
-/// [`analyse_jacobian`] from any matrix R with RᵀR = [M]ᵀ[M] (its triangular factor, say), [M]
-/// stacked over `poses` poses.
 pub(crate) fn analyse_factor(
     r: &DMatrix<f64>,
     poses: usize,

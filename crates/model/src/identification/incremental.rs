@@ -10,7 +10,7 @@
 //! the fit's tolerance; only the iteration count is smaller.
 //!
 //! The identifiability analysis of the kept rows is repeated exactly, on the triangular factor
-//! of [M] at the nominal parameters ([`super::identifiability`] decides on it). [M] is computed
+//! of \[M\] at the nominal parameters ([`super::identifiability`] decides on it). \[M\] is computed
 //! once for every row and factored in blocks of poses; the factor of the kept rows is the
 //! factor of the stacked block factors (a tall-skinny QR), so removing a row refactors its
 //! block and the small stack only. When the basis changes the refit starts from the nominal
@@ -20,9 +20,8 @@
 //! rows, which moves with them: such refits run from scratch ([`super::identify_at`]).
 
 use super::fit::{NormalEquations, Problem};
-use super::geometric::Level;
+use super::geometric::{identify_at, IdentifyError, Level};
 use super::identifiability::{analyse_factor, stacked_jacobian, triangular_factor};
-use super::pipeline::{identify_at, IdentifyError};
 use super::{FitOptions, FitResult, ResidualStats};
 use nalgebra::{DMatrix, Vector3};
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain};
@@ -36,7 +35,7 @@ pub struct GeometricRefits<'a> {
     obs: &'a [Observation],
     level: Level,
     candidates: Vec<usize>,
-    /// [M] at the nominal parameters in factored blocks; `None` when refits run from scratch
+    /// \[M\] at the nominal parameters in factored blocks; `None` when refits run from scratch
     /// (a free frame).
     factors: Option<BlockFactors>,
     /// Position errors of every row at the nominal parameters: a refit's "before".
@@ -121,7 +120,7 @@ impl<'a> GeometricRefits<'a> {
     }
 }
 
-/// [M] of every observation (3 rows each) in blocks of poses, each with the triangular factor
+/// \[M\] of every observation (3 rows each) in blocks of poses, each with the triangular factor
 /// of its kept rows.
 struct BlockFactors {
     m: DMatrix<f64>,
@@ -147,7 +146,7 @@ impl BlockFactors {
         Self { m, blocks }
     }
 
-    /// A factor R with RᵀR = [M]ᵀ[M] over the observations `kept` (increasing).
+    /// A factor R with RᵀR = \[M\]ᵀ\[M\] over the observations `kept` (increasing).
     fn factor(&mut self, kept: &[usize]) -> DMatrix<f64> {
         let mut rest = kept;
         let mut stacked_rows = 0;
@@ -171,7 +170,7 @@ impl BlockFactors {
     }
 }
 
-/// The rows of [M] (3 per observation) of the observations `kept`.
+/// The rows of \[M\] (3 per observation) of the observations `kept`.
 fn select_rows(m: &DMatrix<f64>, kept: &[usize]) -> DMatrix<f64> {
     let mut out = DMatrix::zeros(3 * kept.len(), m.ncols());
     for c in 0..m.ncols() {

@@ -1,10 +1,10 @@
 //! Identification of kinematic error parameters from position measurements (seed 000 section 3.1).
 //!
 //! * [`identifiability`]: which parameters position measurements can separate, from the numerical
-//!   rank of the identification Jacobian [M] (eq. 2) over a spread of poses; the basis is chosen
+//!   rank of the identification Jacobian \[M\] (eq. 2) over a spread of poses; the basis is chosen
 //!   by ordered Gram–Schmidt pivoting (frame and marker first when free, then the rig's preferred
-//!   basis, then the rest), κ of eq. (4) reported on column-scaled [M].
-//! * [`fit`]: Levenberg–Marquardt with column scaling on the chosen parameters, with each
+//!   basis, then the rest), κ of eq. (4) reported on column-scaled \[M\].
+//! * [`fit`](mod@fit): Levenberg–Marquardt with column scaling on the chosen parameters, with each
 //!   parameter's standard deviation and residual statistics.
 //! * [`incremental`]: refits without some rows (the outlier search's), starting from the last
 //!   fit with the removed rows downdated out of its normal equations.
@@ -13,7 +13,8 @@
 //! * [`registration`]: the rigid measurement frame (table to world), closed form then refined by
 //!   the same fit with only the frame free — one mechanism for fixed and free frames.
 //! * [`geometric`]: the sequence every geometric fit of a rig runs — Kabsch start for a free
-//!   frame, analysis, fit — at a [`Level`]; the diagnosis's standard model is this fit.
+//!   frame, analysis, fit — at a [`Level`] ([`identify_at`]); the diagnosis's standard model is
+//!   this fit.
 //! * [`pipeline`]: [`identify`], conventional calibration of a recording: the geometric fit with
 //!   outliers removed and the fitted model checked on held-out recordings.
 //!
@@ -27,13 +28,13 @@ pub mod incremental;
 pub mod outliers;
 pub mod pipeline;
 pub mod registration;
+mod robot_at;
 
 pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};
-pub use geometric::{fit_geometry, GeometricFit, Level};
+pub use geometric::{fit_geometry, identify_at, GeometricFit, IdentifyError, Level};
 pub use identifiability::{analyse, candidate_order, Identifiability};
 pub use pipeline::{
-    heldout_report, identify, identify_at, HeldOut, HeldOutReport, Identification, IdentifyError,
-    IdentifyOptions,
+    identify, HeldOut, HeldOutReport, Identification, IdentifyOptions, StructureJudge,
 };
 pub use registration::{register, Registration};
 

@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 
 /// Below this robust σ (mm) the residuals are rounding, not noise (a noise-free simulation):
 /// nothing is judged.
-pub const NUMERICAL_FLOOR_MM: f64 = 1e-6;
+const NUMERICAL_FLOOR_MM: f64 = 1e-6;
 
 /// Settings of the outlier search.
 #[derive(Debug, Clone, Copy, PartialEq)]

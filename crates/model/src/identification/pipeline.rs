@@ -5,23 +5,25 @@
 //!
 //! Outliers are judged against the structure of the recording, not only against the geometry:
 //! when the geometric judgement flags rows that are not gross beyond any structure (each more
-//! than [`GROSS_FACTOR`] times the largest residual of the rows kept), they are judged again
-//! against the model the diagnosis finds (geometry, named effects, discrepancy term), and only
-//! rows that fail there are removed. A clean recording with structured residuals keeps every
+//! than `GROSS_FACTOR` (3) times the largest residual of the rows kept), they are judged again
+//! against a model of the recording's structure ([`IdentifyOptions::structure`]: the one the
+//! diagnosis finds, geometry, named effects and discrepancy term), and only rows that fail
+//! there are removed. A clean recording with structured residuals keeps every
 //! row; a reflection or a touch on dirt, far beyond every other row, is removed without the
 //! diagnosis's cost (seconds on thousands of rows, against milliseconds).
 //!
 //! The parameters returned are absolute (free frames included), for the rig's own chain, so a
 //! model file written from them stands alone.
 
-use super::geometric::{fit_geometry, Level};
+use super::geometric::{identify_at, IdentifyError, Level};
 use super::incremental::GeometricRefits;
 use super::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
-use super::{errors, FitError, FitResult, ResidualStats};
+use super::{errors, FitResult, ResidualStats};
 use nalgebra::Vector3;
 use rigcal_core::kinematics::{Robot, SerialChain, TransformId};
 use rigcal_core::recording::{Observation, Recording};
 use rigcal_core::rig::Rig;
+use std::convert::Infallible;
 
 /// A recording to check the fitted model on, with the name reports give it.
 #[derive(Debug, Clone)]
@@ -32,6 +34,18 @@ pub struct HeldOut {
     pub recording: Recording,
 }
 
+/// A judgement of a recording's rows against a model of its structure beyond the geometry
+/// (named effects, a discrepancy term): the rows that fail. The outer error says the recording
+/// could not be modelled (the judgement then falls back to the geometric one), the inner one that
+/// too many rows fail. The diagnosis layer provides one
+/// (`diagnosis::outliers::outliers_against_structure`); identification itself knows no physics.
+#[allow(clippy::type_complexity)]
+pub type StructureJudge = fn(
+    &Rig,
+    &Recording,
+    &OutlierSettings,
+) -> Result<Result<Vec<Outlier>, OutlierError<Infallible>>, String>;
+
 /// Settings of [`identify`].
 #[derive(Debug, Clone, Default)]
 pub struct IdentifyOptions {
@@ -39,6 +53,10 @@ pub struct IdentifyOptions {
     pub heldout: Vec<HeldOut>,
     /// The outlier search.
     pub outliers: OutlierSettings,
+    /// Where the geometric judgement finds outliers that structure could explain, the rows are
+    /// judged again against the recording's structure with this; `None`: the geometric
+    /// judgement alone.
+    pub structure: Option<StructureJudge>,
 }
 
 /// The error of a fitted model on one held-out recording (mm).
@@ -71,30 +89,6 @@ pub struct Identification {
     pub heldout: Vec<HeldOutReport>,
 }
 
-/// Why an identification failed.
-#[derive(Debug, thiserror::Error)]
-#[non_exhaustive]
-pub enum IdentifyError {
-    /// The recording has no measured rows.
-    #[error("the recording has no measured rows (status ok with x_mm, y_mm, z_mm)")]
-    NoMeasurements,
-    /// The level leaves no parameter to fit on this rig.
-    #[error("nothing to fit at level {level:?}: the rig's measurement frame and marker are fixed (set them free in [calibration] or use --level full)")]
-    NothingToFit {
-        /// The level asked for.
-        level: Level,
-    },
-    /// The least-squares fit failed.
-    #[error("identification failed")]
-    Fit(#[source] FitError),
-    /// A held-out recording has no measured rows.
-    #[error("held-out recording {name}: no measured rows")]
-    HeldOutEmpty {
-        /// Its name.
-        name: String,
-    },
-}
-
 /// Identifies a rig's error parameters from a recording at a level: outliers are found
 /// robustly and removed, each removal refitting the model without the row, and judged again
 /// against the recording's structure when the geometry flags any; more than
@@ -106,7 +100,8 @@ pub fn identify(
     level: Level,
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
-    let (chain, fit, outliers, outlier_warning) = identify_robust(rig, rec, level, &opts.outliers)?;
+    let (chain, fit, outliers, outlier_warning) =
+        identify_robust(rig, rec, level, &opts.outliers, opts.structure)?;
     let heldout = opts
         .heldout
         .iter()
@@ -121,29 +116,20 @@ pub fn identify(
     })
 }
 
-/// Fits observations at a level: the rig's chain and the fit with absolute frame parameters.
-pub fn identify_at(
-    rig: &Rig,
-    obs: &[Observation],
-    level: Level,
-) -> Result<(SerialChain, FitResult), IdentifyError> {
-    if obs.is_empty() {
-        return Err(IdentifyError::NoMeasurements);
-    }
-    let candidates = level.candidates(rig);
-    if candidates.is_empty() {
-        return Err(IdentifyError::NothingToFit { level });
-    }
-    let geometric = fit_geometry(rig, obs, &candidates).map_err(IdentifyError::Fit)?;
-    Ok(geometric.into_absolute())
-}
-
 /// The robust fit: (chain, fit, outliers removed, warning when there were too many to remove).
+///
+/// The geometric judgement decides alone when no row fails, when every row that fails is gross
+/// beyond any structure ([`GROSS_FACTOR`]), or without a `structure` judge; otherwise the rows
+/// are judged again against the recording's structure and the fit at `level` is redone without
+/// the rows that fail there, so that a clean recording whose residual is structured — its
+/// largest rows are structure, not gross errors — keeps every row. When the structure cannot
+/// be modelled (too few rows, say) the geometric judgement stands.
 fn identify_robust(
     rig: &Rig,
     rec: &Recording,
     level: Level,
     settings: &OutlierSettings,
+    structure: Option<StructureJudge>,
 ) -> Result<Robust, IdentifyError> {
     let obs = rec.observations();
     // The cheap refusals first, so they are not reported as failures of the outlier search.
@@ -153,30 +139,19 @@ fn identify_robust(
     if level.candidates(rig).is_empty() {
         return Err(IdentifyError::NothingToFit { level });
     }
-    // The geometric judgement decides alone when no row fails, or when every row that fails is
-    // gross beyond any structure ([`GROSS_FACTOR`]); otherwise the rows are judged
-    // again against the recording's structure ([`judge_against_structure`]).
-    let judged = geometric_judgement(rig, rec, level, settings)?;
-    let decided = judged.decided_without_structure();
-    let GeometricJudgement {
-        search,
-        first,
-        last,
-    } = judged;
-    match search {
-        Ok((outliers, _)) if decided => {
-            tracing::debug!(
-                outliers = outliers.len(),
-                "outliers decided by the geometric judgement"
-            );
-            let (chain, result) = last_or_all_rows(last, first, rig, &obs, level)?;
-            Ok((chain, result, outliers, None))
+    let judged = geometric_judgement(rig, &obs, &measured_ids(rec), level, settings)?;
+    if judged.decided_without_structure() {
+        tracing::debug!(
+            outliers = judged.search.as_ref().map_or(0, |(found, _)| found.len()),
+            "outliers decided by the geometric judgement"
+        );
+    } else if let Some(judge) = structure {
+        match judge(rig, rec, settings) {
+            Ok(found) => return without_rows_that_fail(rig, &obs, level, found),
+            Err(e) => tracing::debug!(%e, "outliers judged against the geometry only"),
         }
-        Ok(_) | Err(OutlierError::TooMany { .. }) => {
-            judge_against_structure(rig, rec, level, settings)
-        }
-        Err(OutlierError::Fit(e)) => Err(e),
     }
+    judged.into_robust(rig, &obs, level)
 }
 
 /// The outcome of the robust fit: (chain, fit, outliers removed, warning when too many failed).
@@ -189,7 +164,7 @@ type Robust = (SerialChain, FitResult, Vec<Outlier>, Option<String>);
 /// beyond every other row of the recording, while a marker seen through a reflection can.
 /// Rows that fail by less — the largest rows of a structured residual look like that — are
 /// judged against the structure.
-pub const GROSS_FACTOR: f64 = 3.0;
+const GROSS_FACTOR: f64 = 3.0;
 
 /// The outlier search against the geometric fit at a level, each removal refitting from the
 /// last fit without the row ([`GeometricRefits`]).
@@ -218,52 +193,52 @@ impl GeometricJudgement {
             .iter()
             .all(|o| o.size_mm > GROSS_FACTOR * largest_kept)
     }
-}
 
-/// The last fit (on the rows kept), or the fit on every row when the search fitted none.
-fn last_or_all_rows(
-    last: Option<(SerialChain, FitResult, Vec<Vector3<f64>>)>,
-    first: Option<(SerialChain, FitResult)>,
-    rig: &Rig,
-    obs: &[Observation],
-    level: Level,
-) -> Result<(SerialChain, FitResult), IdentifyError> {
-    match last {
-        Some((chain, result, _)) => Ok((chain, result)),
-        None => first_or_all_rows(first, rig, obs, level),
-    }
-}
-
-/// The fit on every row: the search's first, or a fit when the search fitted none.
-fn first_or_all_rows(
-    first: Option<(SerialChain, FitResult)>,
-    rig: &Rig,
-    obs: &[Observation],
-    level: Level,
-) -> Result<(SerialChain, FitResult), IdentifyError> {
-    match first {
-        Some(fitted) => Ok(fitted),
-        None => identify_at(rig, obs, level),
+    /// The judgement as the robust fit: the last fit (on the rows kept) and the rows removed;
+    /// when too many rows failed, the fit on every row, nothing removed and the warning. A fit
+    /// the search did not make is made here.
+    fn into_robust(
+        self,
+        rig: &Rig,
+        obs: &[Observation],
+        level: Level,
+    ) -> Result<Robust, IdentifyError> {
+        let fitted_or_all_rows = |fitted: Option<(SerialChain, FitResult)>| match fitted {
+            Some(fitted) => Ok(fitted),
+            None => identify_at(rig, obs, level),
+        };
+        match self.search {
+            Ok((outliers, _)) => {
+                let last = self.last.map(|(chain, result, _)| (chain, result));
+                let (chain, result) = fitted_or_all_rows(last.or(self.first))?;
+                Ok((chain, result, outliers, None))
+            }
+            Err(e @ OutlierError::TooMany { .. }) => {
+                let (chain, result) = fitted_or_all_rows(self.first)?;
+                Ok((chain, result, Vec::new(), Some(e.to_string())))
+            }
+            Err(OutlierError::Fit(e)) => Err(e),
+        }
     }
 }
 
 /// Outliers judged against the geometric fit at `level`, each removal refitting without the row
-/// (from the last fit, the removed rows downdated: [`GeometricRefits`]).
+/// (from the last fit, the removed rows downdated: [`GeometricRefits`]). `ids`: (seq, CSV line)
+/// of each observation.
 fn geometric_judgement(
     rig: &Rig,
-    rec: &Recording,
+    obs: &[Observation],
+    ids: &[(u64, Option<u64>)],
     level: Level,
     settings: &OutlierSettings,
 ) -> Result<GeometricJudgement, IdentifyError> {
-    let obs = rec.observations();
-    let ids = measured_ids(rec);
-    let mut refits = GeometricRefits::new(rig, &obs, level);
+    let mut refits = GeometricRefits::new(rig, obs, level);
     let mut first = None;
     let mut last = None;
-    let search = remove_outliers(&ids, settings, |kept| {
+    let search = remove_outliers(ids, settings, |kept| {
         // The removed rows stay in the recording (joints, order), they are only not fitted.
         let (chain, result) = refits.fit(kept)?;
-        let residuals = errors(&chain, &obs, &result.params);
+        let residuals = errors(&chain, obs, &result.params);
         let p = result.free.len();
         if first.is_none() {
             first = Some((chain.clone(), result.clone()));
@@ -281,28 +256,18 @@ fn geometric_judgement(
     })
 }
 
-/// The rows judged against the structure the diagnosis finds in the recording (every
-/// identifiable geometric parameter, the named effects and the discrepancy term:
-/// [`crate::diagnosis::outliers::outliers_against_structure`]), so that a clean recording whose
-/// residual is structured — its largest rows are structure, not gross errors — keeps every
-/// row; the fit at `level` is redone without the rows that fail. When the diagnosis cannot
-/// model the recording (too few rows, say) the judgement is the geometric one.
-fn judge_against_structure(
+/// The fit at `level` without the rows that fail a structure judgement (`found`, indices into
+/// `obs`); when too many failed there, nothing is removed and the warning says so.
+fn without_rows_that_fail(
     rig: &Rig,
-    rec: &Recording,
+    obs: &[Observation],
     level: Level,
-    settings: &OutlierSettings,
+    found: Result<Vec<Outlier>, OutlierError<Infallible>>,
 ) -> Result<Robust, IdentifyError> {
-    let obs = rec.observations();
-    let (outliers, warning) =
-        match crate::diagnosis::outliers::outliers_against_structure(rig, rec, settings) {
-            Ok(Ok(found)) => (found, None),
-            Ok(Err(e)) => (Vec::new(), Some(e.to_string())),
-            Err(e) => {
-                tracing::debug!(%e, "outliers judged against the geometry only");
-                return geometric_only(rig, rec, level, settings);
-            }
-        };
+    let (outliers, warning) = match found {
+        Ok(found) => (found, None),
+        Err(e) => (Vec::new(), Some(e.to_string())),
+    };
     let kept: Vec<Observation> = obs
         .iter()
         .enumerate()
@@ -311,34 +276,6 @@ fn judge_against_structure(
         .collect();
     let (chain, result) = identify_at(rig, &kept, level)?;
     Ok((chain, result, outliers, warning))
-}
-
-/// The geometric judgement alone: outliers against the geometric fit, each removal refitting
-/// from the last fit without the row.
-fn geometric_only(
-    rig: &Rig,
-    rec: &Recording,
-    level: Level,
-    settings: &OutlierSettings,
-) -> Result<Robust, IdentifyError> {
-    let obs = rec.observations();
-    let GeometricJudgement {
-        search,
-        first,
-        last,
-    } = geometric_judgement(rig, rec, level, settings)?;
-    match search {
-        Ok((outliers, _)) => {
-            let (chain, result) = last_or_all_rows(last, first, rig, &obs, level)?;
-            Ok((chain, result, outliers, None))
-        }
-        Err(e @ OutlierError::TooMany { .. }) => {
-            let warning = e.to_string();
-            let (chain, result) = first_or_all_rows(first, rig, &obs, level)?;
-            Ok((chain, result, Vec::new(), Some(warning)))
-        }
-        Err(OutlierError::Fit(e)) => Err(e),
-    }
 }
 
 /// (seq, CSV line) of each measured row, in the order of [`Recording::observations`].
@@ -353,7 +290,7 @@ fn measured_ids(rec: &Recording) -> Vec<(u64, Option<u64>)> {
 
 /// The fitted model's error on a held-out recording, beside nominal kinematics seen through the
 /// fitted frame and marker.
-pub fn heldout_report(
+fn heldout_report(
     chain: &SerialChain,
     fit: &FitResult,
     held: &HeldOut,

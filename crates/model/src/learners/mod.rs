@@ -227,7 +227,7 @@ impl ErrorModel for LearnedModel {
 }
 
 /// Which learner generalises the region-wise CEPs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum LearnerKind {
     /// None: compensation uses the CEPs of the region a target falls in.
@@ -248,28 +248,24 @@ pub enum LearnerKind {
 /// The learners' sizes, the paper's by default (seed 000, conventions §5): an FCMAC of 39
 /// sensors (17 on the input of the first joint's coordinate, 11 on each other) with c = (3, 3,
 /// 3), 2057 association cells; a CMAC at the same resolution with three layers.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize, clap::Args)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct LearnerSettings {
     /// FCMAC sensors per input (the CMAC's cells too) [default: 17 on the first joint's
     /// coordinate, 11 on the others: 17,11,11 for joint, 11,17,11 for Cartesian division].
-    #[arg(long = "fcmac-sensors", value_name = "A,B,C", value_parser = three_counts)]
     pub sensors: Option<[usize; 3]>,
     /// FCMAC sensors an input excites per dimension (the paper's c).
-    #[arg(long = "fcmac-c", value_name = "A,B,C", value_parser = three_counts, default_value = "3,3,3")]
     pub c: [usize; 3],
     /// CMAC layers (its generalisation width, as c is the FCMAC's).
-    #[arg(long, default_value_t = 3)]
     pub cmac_layers: usize,
     /// What the FCMAC is trained to reproduce: the regions' CEPs (the paper's (A5)), or, after
     /// that, the measured points themselves (the same network made right where the instrument
     /// measured; see `learners::positions`).
-    #[arg(long = "fcmac-training", value_enum, default_value_t = FcmacTraining::Positions)]
     #[serde(default = "FcmacTraining::paper")]
     pub training: FcmacTraining,
 }
 
 /// What the FCMAC's training reproduces.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum FcmacTraining {
     /// The regions' CEPs, pattern by pattern (seed 000's appendix, (A5)).
@@ -284,16 +280,6 @@ impl FcmacTraining {
     fn paper() -> Self {
         Self::Ceps
     }
-}
-
-/// Three counts separated by commas (`17,11,11`).
-fn three_counts(text: &str) -> Result<[usize; 3], String> {
-    let bad = || format!("`{text}`: give three whole numbers separated by commas");
-    let v: Vec<usize> = text
-        .split(',')
-        .map(|v| v.trim().parse().map_err(|_| bad()))
-        .collect::<Result<_, _>>()?;
-    v.try_into().map_err(|_| bad())
 }
 
 impl Default for LearnerSettings {
@@ -331,13 +317,11 @@ pub enum SettingsError {
 }
 
 impl LearnerSettings {
-    /// Sensors per input for a division space: the settings' own, or the paper's.
+    /// Sensors per input for a division space: the settings' own, or the paper's
+    /// ([`FcmacConfig::paper`]).
     pub fn sensors_for(&self, space: Space) -> [usize; 3] {
-        self.sensors.unwrap_or_else(|| {
-            let mut cells = [11; 3];
-            cells[first_joint_input(space)] = 17;
-            cells
-        })
+        self.sensors
+            .unwrap_or_else(|| FcmacConfig::paper(first_joint_input(space)).cells)
     }
 
     /// The FCMAC these settings make for a division space.

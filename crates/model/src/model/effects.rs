@@ -3,29 +3,30 @@
 //!
 //! Each effect is a joint error Δq_j = Σ_k c_k · b_k(q, s), linear in its coefficients c with
 //! basis functions b of the commanded joints q and the approach directions s (the sign of each
-//! joint's last change, −1/0/+1), the same physics as the simulated world
-//! ([`rigcal_sim::world::Backlash`], [`rigcal_sim::world::TransmissionError`],
-//! [`rigcal_sim::world::JointCompliance`]):
-//! - `backlash` (lost motion b): Δq_j = −s_j · b/2;
-//! - `transmission_error` (order n): Δq_j = A·sin(n·q_j + φ) = c_s·sin(n q_j) + c_c·cos(n q_j);
+//! joint's last change, −1/0/+1), the same physics as the simulated world; each basis is in its
+//! effect's file ([`crate::effects`]):
+//! - `backlash` (lost motion b): Δq_j = −s_j · b/2 ([`crate::effects::backlash`]);
+//! - `transmission_error` (order n): Δq_j = A·sin(n·q_j + φ) = c_s·sin(n q_j) + c_c·cos(n q_j)
+//!   ([`crate::effects::transmission`]);
 //! - `joint_compliance` (compliance c, rad/(N·m)): Δq_j = c · τ_j(q), τ_j the gravity torque
 //!   about joint j of the rig's link masses (rig file `mass_kg`/`com_mm`) plus a payload at the
-//!   tool frame's origin.
+//!   tool frame's origin ([`crate::effects::compliance`]).
+//!
+//! This file holds the model file's vocabulary of them ([`EffectSpec`], [`ModelEffect`]: a kind
+//! a model file carries has its variant here) and the joint fit.
 //!
 //! [`fit_effects`] fits the named effects jointly with the geometric parameters (Gauss–Newton,
 //! the geometry starting from a conventional fit), so the part of an effect the geometry can
 //! absorb is shared out once, not counted twice. Units in files: degrees (mm for a prismatic
 //! joint), deg/(N·m); radians inside.
 
+use crate::effects::{backlash, compliance, transmission, EffectContext, EffectKind};
 use crate::identification::identifiability::stacked_jacobian;
 use crate::identification::{FitResult, Observation, ResidualStats};
-use nalgebra::{DMatrix, DVector, Vector3};
-use rigcal_core::kinematics::{ErrorParams, JointKind, Robot, SerialChain};
+use nalgebra::{DMatrix, DVector};
+use rigcal_core::kinematics::{JointKind, Robot, SerialChain};
 use rigcal_core::rig::LinkMass;
 use serde::{Deserialize, Serialize};
-
-/// Standard gravity (m/s²), along the world's −z.
-const G: f64 = 9.81;
 
 /// Why effects could not be named or fitted.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -56,20 +57,6 @@ pub enum EffectError {
     /// The joint fit failed.
     #[error("fitting the effects: {0}")]
     Fit(String),
-}
-
-/// What an effect needs to know about the arm: its chain and geometry, the link masses and the
-/// payload.
-#[derive(Debug, Clone, Copy)]
-pub struct EffectContext<'a> {
-    /// The chain.
-    pub chain: &'a SerialChain,
-    /// The geometric error parameters.
-    pub e: &'a ErrorParams,
-    /// The rig's link masses (see [`rigcal_core::rig::Rig::link_masses`]).
-    pub masses: &'a [Option<LinkMass>],
-    /// Payload at the tool frame's origin (kg).
-    pub payload_kg: f64,
 }
 
 /// A named effect to fit: kind and joint (and order for a transmission error).
@@ -107,20 +94,30 @@ impl EffectSpec {
             }
             Ok(j - 1)
         };
-        match parts.as_slice() {
-            ["backlash", j] => Ok(Self::Backlash(joint(j)?)),
-            ["joint_compliance", j] => Ok(Self::JointCompliance(joint(j)?)),
-            ["transmission_error", j, n] => {
+        let kind = parts.first().and_then(|k| EffectKind::from_name(k));
+        match (kind, &parts[1..]) {
+            (Some(EffectKind::Backlash), [j]) => Ok(Self::Backlash(joint(j)?)),
+            (Some(EffectKind::JointCompliance), [j]) => Ok(Self::JointCompliance(joint(j)?)),
+            (Some(EffectKind::TransmissionError), [j, n]) => {
                 let n = number(n, "harmonic order")?;
                 if n == 0 || n > 10_000 {
                     return Err(bad("the order is the cycles per revolution, ≥ 1".into()));
                 }
                 Ok(Self::TransmissionError(joint(j)?, n as u32))
             }
-            ["transmission_error", _] => Err(bad(
+            (Some(EffectKind::TransmissionError), [_]) => Err(bad(
                 "give the harmonic order too: transmission_error:JOINT:ORDER".into(),
             )),
             _ => Err(bad(format!("expected one of {SPEC_KINDS}"))),
+        }
+    }
+
+    /// Its kind.
+    pub fn kind(&self) -> EffectKind {
+        match self {
+            Self::Backlash(_) => EffectKind::Backlash,
+            Self::TransmissionError(..) => EffectKind::TransmissionError,
+            Self::JointCompliance(_) => EffectKind::JointCompliance,
         }
     }
 
@@ -134,18 +131,17 @@ impl EffectSpec {
     /// "backlash on joint 2".
     pub fn label(&self) -> String {
         match *self {
-            Self::Backlash(j) => format!("backlash on joint {}", j + 1),
             Self::TransmissionError(j, n) => {
-                format!("transmission_error (order {n}) on joint {}", j + 1)
+                format!("{} (order {n}) on joint {}", self.kind(), j + 1)
             }
-            Self::JointCompliance(j) => format!("joint_compliance on joint {}", j + 1),
+            _ => format!("{} on joint {}", self.kind(), self.joint() + 1),
         }
     }
 
     /// Checks what the effect needs from the rig (compliance: the masses).
     pub fn check(&self, masses: &[Option<LinkMass>], dof: usize) -> Result<(), EffectError> {
         if let Self::JointCompliance(j) = *self {
-            if !(j..dof).all(|k| masses.get(k).is_some_and(Option::is_some)) {
+            if !compliance::masses_cover(masses, j, dof) {
                 return Err(EffectError::NoMasses { joint: j + 1 });
             }
         }
@@ -156,12 +152,9 @@ impl EffectSpec {
     /// Δq_joint = Σ c_k · b_k.
     pub fn basis(&self, ctx: &EffectContext<'_>, q: &[f64], dir: &[i8]) -> Vec<f64> {
         match *self {
-            Self::Backlash(j) => vec![-f64::from(dir.get(j).copied().unwrap_or(0)) / 2.0],
-            Self::TransmissionError(j, n) => {
-                let x = f64::from(n) * q[j];
-                vec![x.sin(), x.cos()]
-            }
-            Self::JointCompliance(j) => vec![gravity_torque(ctx, q, j)],
+            Self::Backlash(j) => backlash::basis(j, dir),
+            Self::TransmissionError(j, n) => transmission::basis(n, q[j]),
+            Self::JointCompliance(j) => vec![compliance::gravity_torque(ctx, q, j)],
         }
     }
 
@@ -176,17 +169,7 @@ impl EffectSpec {
                 sigma_deg: Some(file(j, sd(0))),
             },
             Self::TransmissionError(j, order) => {
-                let a = c[0].hypot(c[1]);
-                let sa = if a > 0.0 {
-                    let g = [c[0] / a, c[1] / a];
-                    (g[0] * g[0] * cov[(0, 0)]
-                        + 2.0 * g[0] * g[1] * cov[(0, 1)]
-                        + g[1] * g[1] * cov[(1, 1)])
-                        .max(0.0)
-                        .sqrt()
-                } else {
-                    f64::NAN
-                };
+                let (a, sa) = transmission::amplitude_sigma(c, cov);
                 ModelEffect::TransmissionError {
                     joint: j + 1,
                     order,
@@ -342,33 +325,6 @@ pub fn joint_offsets(
             .sum::<f64>();
     }
     dq
-}
-
-/// Gravity torque (N·m) about joint `j` at `q`: the rig's link masses from `j` on and the
-/// payload at the tool frame's origin, gravity along the base's −z (turned by the measurement
-/// frame). A link without a mass adds nothing ([`EffectSpec::check`] refuses compliance then).
-pub fn gravity_torque(ctx: &EffectContext<'_>, q: &[f64], j: usize) -> f64 {
-    let chain = ctx.chain;
-    let n = chain.joints().len();
-    let axis = chain.frame_before_joint(q, ctx.e, j);
-    let z = axis.rotation * Vector3::z();
-    let o = axis.translation.vector;
-    let g = chain.frame_pose(ctx.e).rotation * Vector3::new(0.0, 0.0, -G);
-    let mut points: Vec<(f64, Vector3<f64>)> = (j..n)
-        .filter_map(|k| {
-            let m = ctx.masses.get(k).copied().flatten()?;
-            let end = chain.frame_before_joint(q, ctx.e, k + 1);
-            Some((m.kg, (end * nalgebra::Point3::from(m.com_mm)).coords))
-        })
-        .collect();
-    if ctx.payload_kg != 0.0 {
-        let tool = chain.frame_before_joint(q, ctx.e, n);
-        points.push((ctx.payload_kg, tool.translation.vector));
-    }
-    points
-        .iter()
-        .map(|(kg, p)| ((p - o) / 1000.0).cross(&(g * *kg)).dot(&z))
-        .sum()
 }
 
 /// One measurement for [`fit_effects`]: joints, measured point and approach directions.
@@ -570,13 +526,11 @@ fn joint_system(
     (a, r)
 }
 
-/// Least squares with unit-norm columns: the step, the covariance σ²(AᵀA)⁻¹ and σ².
-fn solve_scaled(
-    a: &DMatrix<f64>,
-    r: &DVector<f64>,
-) -> Result<(DVector<f64>, DMatrix<f64>, f64), EffectError> {
-    let p = a.ncols();
-    let scale: Vec<f64> = (0..p)
+/// `a` with its columns scaled to unit norm (a zero column left as it is) and the scales: the
+/// solution of the scaled system times the scales solves the original one. Fits of effects
+/// beside the geometry mix mm/rad and mm per N·m columns; scaling keeps their SVD honest.
+pub fn unit_columns(a: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    let scale: Vec<f64> = (0..a.ncols())
         .map(|c| {
             let n = a.column(c).norm();
             if n > 0.0 {
@@ -590,6 +544,16 @@ fn solve_scaled(
     for (c, f) in scale.iter().enumerate() {
         s.column_mut(c).scale_mut(*f);
     }
+    (s, scale)
+}
+
+/// Least squares with unit-norm columns: the step, the covariance σ²(AᵀA)⁻¹ and σ².
+fn solve_scaled(
+    a: &DMatrix<f64>,
+    r: &DVector<f64>,
+) -> Result<(DVector<f64>, DMatrix<f64>, f64), EffectError> {
+    let p = a.ncols();
+    let (s, scale) = unit_columns(a);
     let svd = s.clone().svd(true, true);
     let step = svd
         .solve(r, 1e-12)
@@ -682,6 +646,7 @@ pub fn fit_recording_effects(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rigcal_core::kinematics::ErrorParams;
 
     #[test]
     fn specs_parse_with_one_based_joints_and_clear_errors() {

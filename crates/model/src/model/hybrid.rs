@@ -13,7 +13,8 @@
 use crate::compensation::{
     compensate, compensate_from, CompensationError, CompensationOptions, TargetError,
 };
-use crate::model::effects::{joint_offsets, EffectContext, ModelEffect};
+use crate::effects::EffectContext;
+use crate::model::effects::{joint_offsets, ModelEffect};
 use rigcal_core::kinematics::{ErrorModel, ErrorParams, Robot, SerialChain};
 use rigcal_core::recording::Target;
 use rigcal_core::rig::LinkMass;

@@ -4,6 +4,7 @@
 //! rows, held-out figures, each diagnosed effect with its evidence plot, the division's regions.
 
 use super::svg::{bars, scatter, Series};
+use crate::diagnosis::plots::ResidualSeries;
 use crate::diagnosis::report::Report;
 use crate::identification::{Identification, ResidualStats};
 use crate::model::{ModelBody, ModelFile};
@@ -131,6 +132,24 @@ pub struct Source<'a> {
     pub recording: &'a str,
     /// Rows in the recording.
     pub rows: usize,
+}
+
+impl<'a> Source<'a> {
+    /// A report on `rows` rows of the recording at `recording`, read with `rig` from the rig
+    /// file at `rig_path` (a path that is not UTF-8 reads `(rig file)` or `(recording)`).
+    pub fn of(
+        rig: &'a rigcal_core::rig::Rig,
+        rig_path: &'a std::path::Path,
+        recording: &'a std::path::Path,
+        rows: usize,
+    ) -> Self {
+        Source {
+            rig: &rig.name,
+            rig_path: rig_path.to_str().unwrap_or("(rig file)"),
+            recording: recording.to_str().unwrap_or("(recording)"),
+            rows,
+        }
+    }
 }
 
 fn source_section(h: &mut Html, s: &Source<'_>) {
@@ -337,19 +356,6 @@ fn outlier_section(
     );
 }
 
-/// The residual of the geometric fit against one variable, per axis (for evidence plots).
-#[derive(Debug, Clone)]
-pub struct ResidualSeries {
-    /// What the x axis is (`joint 2 (deg)`, `time (s)`).
-    pub label: String,
-    /// The joint (1-based), when it is a joint.
-    pub joint: Option<usize>,
-    /// x values.
-    pub x: Vec<f64>,
-    /// Residual (x, y, z) per point (mm).
-    pub residual: Vec<[f64; 3]>,
-}
-
 fn residual_plot(title: &str, s: &ResidualSeries) -> String {
     let series: Vec<Series> = ["x", "y", "z"]
         .iter()
@@ -415,7 +421,7 @@ pub fn diagnosis_report(source: &Source<'_>, r: &Report, residuals: &[ResidualSe
         .map(|e| {
             (
                 vec![
-                    e.kind.clone(),
+                    e.kind.to_string(),
                     e.joint.map(|j| j.to_string()).unwrap_or_default(),
                     format!("{:.4}", e.size_mm),
                     format!("{:.4}", e.size_sigma_mm),

@@ -2,8 +2,9 @@
 //! point by point, the difference diagnosed, and the scenario rewritten.
 //!
 //! 1. **Replay**: the scenario's world, without its random errors, runs the recording's rows in
-//!    order at their times ([`World::replay`]): the same motion history (backlash), drift time
-//!    and approach directions as recorded; each `ok` row gets the expected reading.
+//!    order at their times ([`World::replay`](crate::world::World::replay)): the same motion
+//!    history (backlash), drift time and approach directions as recorded; each `ok` row gets the
+//!    expected reading.
 //! 2. **Compare**: difference d = recorded − simulated per row; RMS on all rows and on the
 //!    held-out rows (every [`TwinOptions::holdout_every`]-th measured row, never fitted), and
 //!    where it is largest (per joint interval, per time quarter, per axis).
@@ -13,27 +14,34 @@
 //!    effects it names are what the twin lacks.
 //! 4. **Fit in the scenario's own terms**: the identifiable geometric parameters and the named
 //!    effects as the world writes them (backlash lost motion, transmission harmonics, compliance
-//!    with the rig's link masses, warm-up drift A·(1 − e^(−t/τ)) with τ by a line search), jointly
-//!    by least squares on d over the fitted rows, so what the geometry absorbs is counted once.
+//!    with the rig's link masses — each with its model term's basis — and warm-up drift
+//!    A·(1 − e^(−t/τ)) with τ by a line search), jointly by least squares on d over the fitted
+//!    rows, so what the geometry absorbs is counted once.
 //! 5. **Write** the updated scenario ([`crate::world::write`]): the old file's settings and
-//!    effects, the geometry as explicit values, the new effects appended, and — when the
-//!    diagnosis leaves structure no library effect explains — a flagged `discrepancy` effect
-//!    ([`crate::world::discrepancy`]): the shapes the diagnosis located it with, refitted here
-//!    jointly with the geometry (so what the geometry absorbs is counted once), which the world
-//!    simulates and which says, in its note and a comment, that it is not physics from the
-//!    library.
+//!    effects, the geometry as explicit values, the new effects appended (each written by its
+//!    effect's file in [`rigcal_model::effects`]), and — when the diagnosis leaves structure no
+//!    library effect explains — a flagged `discrepancy` effect
+//!    ([`rigcal_model::effects::discrepancy`]): the shapes the diagnosis located it with,
+//!    refitted here jointly with the geometry (so what the geometry absorbs is counted once),
+//!    which the world simulates and which says, in its note and a comment, that it is not
+//!    physics from the library.
 //! 6. **Re-simulate** the written file and compare again (RMS after, all rows and held out).
 //!
 //! Units: mm, radians inside, degrees and mm in files.
 
-use crate::world::discrepancy::{self as world_discrepancy, DiscrepancyTerm, Driver};
-use crate::world::write::{discrepancy_comment, scenario_text, NewEffect};
+use crate::world::write::{discrepancy_comment, scenario_text};
 use crate::world::{identifiable, Scenario, ScenarioError};
 use nalgebra::{DMatrix, DVector, Vector3};
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::recording::{Recording, Status};
+use rigcal_core::rig::Rig;
 use rigcal_model::diagnosis::{diagnose, EffectReport, Options, Report};
-use rigcal_model::model::effects::{effect_observations, EffectContext, EffectSpec};
+use rigcal_model::effects::discrepancy::{self as fitted, DiscrepancyTerm, Driver};
+use rigcal_model::effects::drift::{warm_up, DriftTarget};
+use rigcal_model::effects::{
+    backlash, compliance, drift, transmission, EffectContext, EffectKind, NewEffect, AXES,
+};
+use rigcal_model::model::effects::{effect_observations, unit_columns, EffectSpec};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -376,18 +384,14 @@ fn discrepancy_terms(report: &Report) -> (Vec<String>, Vec<DiscrepancyTerm>) {
 
 /// The flagged `discrepancy` effect to append.
 fn discrepancy_effect(scenario: &Scenario, terms: Vec<DiscrepancyTerm>) -> NewEffect {
-    let d = world_discrepancy::Discrepancy {
+    let d = fitted::Discrepancy {
         terms,
         note: format!(
             "{}: the structure of the recording no library effect explains, fitted in the shapes the diagnosis located it with; it describes a residual and explains nothing",
-            world_discrepancy::FLAG
+            fitted::FLAG
         ),
     };
-    let coefficients: usize = d.terms.iter().map(DiscrepancyTerm::width).sum();
-    NewEffect {
-        table: world_discrepancy::table(&scenario.rig.chain, &d),
-        summary: format!("{} term(s), {coefficients} coefficients", d.terms.len()),
-    }
+    fitted::scenario_entry(&scenario.rig.chain, &d)
 }
 
 /// The library terms not claimed, as commented `[[effects]]` tables a user may uncomment to
@@ -557,12 +561,10 @@ fn difference_recording(scenario: &Scenario, rec: &Recording, rows: &[Row]) -> R
 enum Term {
     /// A joint effect with the model's basis (backlash, transmission, compliance).
     Joint(EffectSpec),
-    /// Warm-up drift of a joint.
-    DriftJoint(usize),
-    /// Warm-up drift of the tip along an axis.
-    DriftAxis(usize),
+    /// Warm-up drift of a joint or of the tip along an axis.
+    Drift(DriftTarget),
     /// A named effect the twin cannot write (table effects), with its kind.
-    Unsupported(&'static str),
+    Unsupported(EffectKind),
 }
 
 fn term_of(e: &EffectReport) -> (String, Term) {
@@ -570,24 +572,22 @@ fn term_of(e: &EffectReport) -> (String, Term) {
     let axis = e
         .axis
         .as_deref()
-        .and_then(|a| rigcal_model::diagnosis::AXES.iter().position(|x| *x == a));
+        .and_then(|a| AXES.iter().position(|x| *x == a));
     let label = match (joint, &e.axis, e.order) {
         (Some(j), _, Some(n)) => format!("{} (order {n}) on joint {}", e.kind, j + 1),
         (Some(j), _, None) => format!("{} on joint {}", e.kind, j + 1),
         (None, Some(a), _) => format!("{} along {a}", e.kind),
-        _ => e.kind.clone(),
+        _ => e.kind.to_string(),
     };
-    let term = match (e.kind.as_str(), joint, axis) {
-        ("backlash", Some(j), _) => Term::Joint(EffectSpec::Backlash(j)),
-        ("transmission_error", Some(j), _) => {
+    let term = match (e.kind, joint, axis) {
+        (EffectKind::Backlash, Some(j), _) => Term::Joint(EffectSpec::Backlash(j)),
+        (EffectKind::TransmissionError, Some(j), _) => {
             Term::Joint(EffectSpec::TransmissionError(j, e.order.unwrap_or(1)))
         }
-        ("joint_compliance", Some(j), _) => Term::Joint(EffectSpec::JointCompliance(j)),
-        ("thermal_drift", Some(j), _) => Term::DriftJoint(j),
-        ("thermal_drift", None, Some(a)) => Term::DriftAxis(a),
-        ("table_scale", ..) => Term::Unsupported("table_scale"),
-        ("table_squareness", ..) => Term::Unsupported("table_squareness"),
-        _ => Term::Unsupported("effect"),
+        (EffectKind::JointCompliance, Some(j), _) => Term::Joint(EffectSpec::JointCompliance(j)),
+        (EffectKind::ThermalDrift, Some(j), _) => Term::Drift(DriftTarget::Joint(j)),
+        (EffectKind::ThermalDrift, None, Some(a)) => Term::Drift(DriftTarget::Axis(a)),
+        (kind, ..) => Term::Unsupported(kind),
     };
     (label, term)
 }
@@ -630,9 +630,7 @@ fn fit_twin(
         })
         .collect();
     let active: Vec<Term> = usable.iter().filter_map(|t| t.clone().ok()).collect();
-    let has_drift = active
-        .iter()
-        .any(|t| matches!(t, Term::DriftJoint(_) | Term::DriftAxis(_)));
+    let has_drift = active.iter().any(|t| matches!(t, Term::Drift(_)));
     let t_max = rows.iter().map(|r| r.t_s).fold(0.0, f64::max).max(1.0);
     let taus: Vec<f64> = if has_drift {
         TAU_FRACTIONS.iter().map(|f| f * t_max).collect()
@@ -679,7 +677,7 @@ fn fit_twin(
             Ok(t) => {
                 let c = &coef_of[k];
                 k += 1;
-                NewEffect::of(rig, t_to_kind(t), c, tau)
+                written(rig, t, c, tau)
             }
         })
         .collect();
@@ -693,16 +691,21 @@ fn width(t: &Term) -> usize {
     }
 }
 
-fn t_to_kind(t: &Term) -> crate::world::write::EffectKind {
-    use crate::world::write::EffectKind as K;
+/// The scenario entry of term `t` with fitted coefficients `c` (internal units) and, for a drift,
+/// time constant `tau_s`, written by its effect's file; an error says why it cannot be written
+/// (a negative lost motion or compliance is not that physics).
+fn written(rig: &Rig, t: &Term, c: &[f64], tau_s: f64) -> Result<NewEffect, String> {
     match *t {
-        Term::Joint(EffectSpec::Backlash(j)) => K::Backlash(j),
-        Term::Joint(EffectSpec::TransmissionError(j, n)) => K::Transmission(j, n),
-        Term::Joint(EffectSpec::JointCompliance(j)) => K::Compliance(j),
-        Term::DriftJoint(j) => K::DriftJoint(j),
-        Term::DriftAxis(a) => K::DriftAxis(a),
+        Term::Joint(EffectSpec::Backlash(j)) => backlash::scenario_entry(&rig.chain, j, c[0]),
+        Term::Joint(EffectSpec::TransmissionError(j, n)) => {
+            Ok(transmission::scenario_entry(j, n, c))
+        }
+        Term::Joint(EffectSpec::JointCompliance(j)) => {
+            compliance::scenario_entry(&rig.link_masses, j, c[0])
+        }
+        Term::Drift(target) => drift::scenario_entry(&rig.chain, target, c[0], tau_s),
         // Filtered out before the fit.
-        _ => K::DriftAxis(usize::MAX),
+        Term::Joint(_) | Term::Unsupported(_) => Err("not a term the twin writes".into()),
     }
 }
 
@@ -738,7 +741,7 @@ fn twin_system(
             free,
         );
         let jj = chain.joint_jacobian(&row.q, e);
-        let warm = 1.0 - (-row.t_s.max(0.0) / tau).exp();
+        let warm = warm_up(row.t_s, tau);
         for k in 0..3 {
             r[3 * i + k] = row.d[k];
             for c in 0..free.len() {
@@ -753,11 +756,11 @@ fn twin_system(
                             c += 1;
                         }
                     }
-                    Term::DriftJoint(j) => {
+                    Term::Drift(DriftTarget::Joint(j)) => {
                         a[(3 * i + k, c)] = warm * jj[(k, *j)];
                         c += 1;
                     }
-                    Term::DriftAxis(ax) => {
+                    Term::Drift(DriftTarget::Axis(ax)) => {
                         a[(3 * i + k, c)] = if k == *ax { warm } else { 0.0 };
                         c += 1;
                     }
@@ -813,20 +816,7 @@ fn solve(a: &DMatrix<f64>, r: &DVector<f64>) -> Result<DVector<f64>, TwinError> 
             a.nrows() / 3
         )));
     }
-    let scale: Vec<f64> = (0..p)
-        .map(|c| {
-            let n = a.column(c).norm();
-            if n > 0.0 {
-                1.0 / n
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    let mut s = a.clone();
-    for (c, f) in scale.iter().enumerate() {
-        s.column_mut(c).scale_mut(*f);
-    }
+    let (s, scale) = unit_columns(a);
     let x = s
         .svd(true, true)
         .solve(r, 1e-10)
@@ -860,7 +850,7 @@ pub fn model_with_named_effects(
         rig,
         rec,
         rigcal_model::identification::Level::Full,
-        &rigcal_model::identification::IdentifyOptions::default(),
+        &rigcal_model::diagnosis::outliers::identify_options(),
     )?;
     let mut specs = Vec::new();
     let mut left = Vec::new();

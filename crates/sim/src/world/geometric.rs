@@ -5,20 +5,19 @@
 //! identification Jacobian over random poses, conventions §4), or both: explicit values override
 //! drawn ones. Radians inside.
 
-use super::scenario::ScenarioError;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain};
 use rigcal_core::rig::Rig;
+use rigcal_model::effects::{setup_rng, EntryError};
 use rigcal_model::identification::{analyse, candidate_order, random_poses, Identifiability};
 use serde::Deserialize;
 use std::collections::BTreeMap;
-use std::path::Path;
 
 /// How drawn errors are distributed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
-pub enum Distribution {
+pub(crate) enum Distribution {
     /// ± the magnitude, sign drawn (seed 000's "0.4 mm or 0.05°").
     #[default]
     Signs,
@@ -76,17 +75,8 @@ pub fn identifiable(rig: &Rig) -> Vec<usize> {
 }
 
 /// Builds the true geometric errors from a scenario's `[geometric]` section.
-pub(crate) fn build(
-    raw: &RawGeometric,
-    rig: &Rig,
-    seed: u64,
-    path: &Path,
-) -> Result<ErrorParams, ScenarioError> {
-    let invalid = |key: String, reason: String| ScenarioError::Invalid {
-        path: path.to_path_buf(),
-        key,
-        reason,
-    };
+pub(crate) fn build(raw: &RawGeometric, rig: &Rig, seed: u64) -> Result<ErrorParams, EntryError> {
+    let invalid = |key: String, reason: String| EntryError { key, reason };
     let layout = rig.chain.layout();
     let mut e = ErrorParams::zeros(layout);
     if let Some(r) = &raw.random {
@@ -98,7 +88,7 @@ pub(crate) fn build(
                 ));
             }
         }
-        let mut rng = super::setup_rng(seed, usize::MAX);
+        let mut rng = setup_rng(seed, usize::MAX);
         for i in identifiable(rig) {
             let kind = layout.ids()[i].kind;
             let size = if kind.is_angle() {

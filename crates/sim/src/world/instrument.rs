@@ -9,6 +9,8 @@
 //! Units: mm; angles in radians inside.
 
 use nalgebra::{Isometry3, Vector3};
+use rand::rngs::ChaCha8Rng;
+use rand::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rigcal_core::rig::TablePanel;
 
@@ -55,7 +57,7 @@ pub struct Draws {
 impl Draws {
     /// The draws of measurement `seq`, attempt `attempt`.
     pub fn new(seed: u64, seq: u64, attempt: u32) -> Self {
-        let mut rng = super::draw_rng(seed, seq, attempt);
+        let mut rng = draw_rng(seed, seq, attempt);
         let mut v = || {
             Vector3::from_fn(|_, _| {
                 let z: f64 = StandardNormal.sample(&mut rng);
@@ -67,15 +69,16 @@ impl Draws {
         let table = v();
         Self { noise, arm, table }
     }
+}
 
-    /// No randomness.
-    pub fn zero() -> Self {
-        Self {
-            noise: Vector3::zeros(),
-            arm: Vector3::zeros(),
-            table: Vector3::zeros(),
-        }
-    }
+/// The generator for one measurement's draws: a function of (seed, seq, attempt) only.
+fn draw_rng(seed: u64, seq: u64, attempt: u32) -> ChaCha8Rng {
+    let mut key = [0u8; 32];
+    key[..8].copy_from_slice(&seed.to_le_bytes());
+    key[8..16].copy_from_slice(&seq.to_le_bytes());
+    key[16..20].copy_from_slice(&attempt.to_le_bytes());
+    key[20..].copy_from_slice(b"rigcal-world");
+    ChaCha8Rng::from_seed(key)
 }
 
 /// Why the panel did not register a touch.
@@ -122,7 +125,7 @@ pub fn pin_angle_ok(tool: &Isometry3<f64>, pin_axis: &Vector3<f64>, min_angle: f
 
 /// The count of an exact offset `x` (mm) on an axis of width `w` (mm) with `n` counts centred on
 /// zero; None outside the area.
-pub fn count_of(x: f64, w: f64, n: u32) -> Option<u32> {
+fn count_of(x: f64, w: f64, n: u32) -> Option<u32> {
     let c = ((x + w / 2.0) * f64::from(n) / w).floor();
     if c >= 0.0 && c < f64::from(n) {
         Some(c as u32)
@@ -132,7 +135,7 @@ pub fn count_of(x: f64, w: f64, n: u32) -> Option<u32> {
 }
 
 /// The offset (mm) a count stands for: (c + 0.5) · w/n − w/2.
-pub fn offset_of(c: u32, w: f64, n: u32) -> f64 {
+fn offset_of(c: u32, w: f64, n: u32) -> f64 {
     (f64::from(c) + 0.5) * w / f64::from(n) - w / 2.0
 }
 
@@ -154,6 +157,6 @@ pub fn panel_report(panel: &TablePanel, uv: [f64; 2], quantise: bool) -> Touch {
 }
 
 /// True when a table reading lies within the travel (0..travel on each axis).
-pub fn within_travel(panel: &TablePanel, reading: &Vector3<f64>) -> bool {
+pub(crate) fn within_travel(panel: &TablePanel, reading: &Vector3<f64>) -> bool {
     (0..3).all(|k| reading[k] >= 0.0 && reading[k] <= panel.travel_mm[k])
 }

@@ -11,6 +11,9 @@
 //! 2. Joint-space effects give the actual joints q + Δq (eq. 6, compliance, backlash,
 //!    transmission error, drift); the true geometry ([`ErrorParams`]) gives the true tool pose;
 //!    tip effects (Cartesian drift) move the tip; repeatability scatters it per measurement.
+//!    Each effect's truth is in its own file of [`rigcal_model::effects`] (beside its scenario
+//!    entry, diagnosis candidate and model term); the world only composes them through the
+//!    [`Effect`] hooks, giving each the motion history's approach directions.
 //! 3. Ideal instrument: the reading is the tip plus Gaussian noise. Table and panel: the table goes
 //!    to the nominal tip in x and y and rises until the panel meets the pin; the table's truth
 //!    ([`TableMap`]: scale, squareness, registration) says where the panel really is; the panel
@@ -19,42 +22,24 @@
 //!
 //! Units: mm and radians inside (degrees in files).
 
-mod backlash;
-mod compliance;
-pub mod discrepancy;
-mod drift;
-mod effect;
 mod geometric;
 mod instrument;
-mod paper;
-mod registry;
 mod scenario;
 pub mod simulate;
-mod table;
-mod transmission;
-mod trig_joint;
 pub mod write;
 
-pub use backlash::Backlash;
-pub use compliance::{JointCompliance, PointMass, G};
-pub use drift::{DriftTarget, ThermalDrift};
-pub use effect::{axis_index, Effect, JointContext, ParseCtx, TableMap};
-pub use geometric::{identifiable, paper_geometric_errors, Distribution};
-pub use instrument::{
-    count_of, offset_of, panel_report, pin_angle_ok, within_travel, Draws, MeasurementSettings,
-    MissReason, Touch,
+pub use geometric::{identifiable, paper_geometric_errors};
+use instrument::within_travel;
+pub use instrument::{panel_report, pin_angle_ok, Draws, MeasurementSettings, MissReason, Touch};
+pub use rigcal_model::effects::{
+    error_split, fig6_path, Backlash, DriftTarget, Effect, ErrorSplit, Harmonic, JointCompliance,
+    JointContext, PointMass, RegistrationOffset, TableMap, TableScale, TableSquareness,
+    ThermalDrift, TransmissionError,
 };
-pub use paper::{error_split, fig6_path, ErrorSplit};
-pub use registry::{parse_effect, ParseFn, REGISTRY};
 pub use scenario::{Scenario, ScenarioError};
 pub use simulate::{check_same_rig, random_session_poses, simulate_session, SimulateError};
-pub use table::{RegistrationOffset, TableScale, TableSquareness};
-pub use transmission::{Harmonic, TransmissionError};
-pub use trig_joint::TrigJointErrors;
 
 use nalgebra::{Isometry3, Vector3};
-use rand::rngs::ChaCha8Rng;
-use rand::SeedableRng;
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain};
 use rigcal_core::recording::{Measurement, Recording, Status};
 use rigcal_core::rig::Instrument;
@@ -129,7 +114,7 @@ pub struct Reading {
 
 impl Reading {
     /// This reading as a recording row.
-    pub fn to_measurement(&self, seq: u64, t_s: f64) -> Measurement {
+    fn to_measurement(&self, seq: u64, t_s: f64) -> Measurement {
         Measurement {
             seq,
             t_s: Some(t_s),
@@ -219,24 +204,9 @@ impl World {
         &self.instrument
     }
 
-    /// The effects.
-    pub fn effects(&self) -> &[Arc<dyn Effect>] {
-        &self.effects
-    }
-
     /// The random-error settings.
     pub fn settings(&self) -> &MeasurementSettings {
         &self.settings
-    }
-
-    /// The seed.
-    pub fn seed(&self) -> u64 {
-        self.seed
-    }
-
-    /// The table's truth (table_panel rigs).
-    pub fn table_map(&self) -> Option<&TableMap> {
-        self.table.as_ref()
     }
 
     /// The motion history, to store in a journal.
@@ -257,7 +227,7 @@ impl World {
             truth: &self.truth,
             commanded: q,
             t_s,
-            history,
+            direction: &history.direction,
         };
         let mut dq = vec![0.0; q.len()];
         for e in &self.effects {
@@ -311,19 +281,9 @@ impl World {
         self.table.as_ref().map(|m| m.world(reading))
     }
 
-    /// The table reading at which the panel, at table x and y `xy`, meets a tip at `tip` (world).
-    pub fn contact_reading(&self, xy: [f64; 2], tip: &Vector3<f64>) -> Option<Vector3<f64>> {
-        self.table.as_ref().map(|m| m.reading_at_height(xy, tip.z))
-    }
-
     /// What the panel reports when the table reads `reading` and the pin (tool pose `tool`) has
     /// its tip at `tip`: counts, or why there is no valid touch. An ideal instrument never misses.
-    pub fn touch(
-        &self,
-        tool: &Isometry3<f64>,
-        tip: &Vector3<f64>,
-        reading: &Vector3<f64>,
-    ) -> Touch {
+    fn touch(&self, tool: &Isometry3<f64>, tip: &Vector3<f64>, reading: &Vector3<f64>) -> Touch {
         let (Instrument::TablePanel(tp), Some(map)) = (&self.instrument, &self.table) else {
             return Touch::Contact {
                 counts: [0, 0],
@@ -469,26 +429,6 @@ impl World {
             actual.iter().zip(q).map(|(a, b)| a - b).collect()
         })
     }
-}
-
-/// The generator for one measurement's draws: a function of (seed, seq, attempt) only.
-pub fn draw_rng(seed: u64, seq: u64, attempt: u32) -> ChaCha8Rng {
-    let mut key = [0u8; 32];
-    key[..8].copy_from_slice(&seed.to_le_bytes());
-    key[8..16].copy_from_slice(&seq.to_le_bytes());
-    key[16..20].copy_from_slice(&attempt.to_le_bytes());
-    key[20..].copy_from_slice(b"rigcal-world");
-    ChaCha8Rng::from_seed(key)
-}
-
-/// The generator for drawing a scenario's truth (random geometric errors, random coefficients of
-/// effect `index`): a function of the seed and the index only, separate from measurement draws.
-pub fn setup_rng(seed: u64, index: usize) -> ChaCha8Rng {
-    let mut key = [0u8; 32];
-    key[..8].copy_from_slice(&seed.to_le_bytes());
-    key[8..16].copy_from_slice(&(index as u64).to_le_bytes());
-    key[16..].copy_from_slice(b"rigcal-scenario!");
-    ChaCha8Rng::from_seed(key)
 }
 
 #[cfg(test)]

@@ -11,7 +11,7 @@
 //! random = { length_mm = 0.4, angle_deg = 0.05, distribution = "signs" }
 //!
 //! [[effects]]
-//! kind = "backlash"                          # see registry::REGISTRY for every kind
+//! kind = "backlash"                          # see rigcal_model::effects::EffectKind
 //! joint = 2
 //! lost_motion_deg = 0.02
 //!
@@ -23,13 +23,12 @@
 //! seconds_per_point = 5.0
 //! ```
 
-use super::effect::{Effect, ParseCtx};
 use super::geometric::{self, RawGeometric};
 use super::instrument::MeasurementSettings;
-use super::registry::parse_effect;
 use super::World;
 use rigcal_core::kinematics::ErrorParams;
 use rigcal_core::rig::{Instrument, Rig, RigError};
+use rigcal_model::effects::{parse_effect, Effect, EntryError, ParseCtx};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -145,12 +144,16 @@ impl Scenario {
             path: path.to_path_buf(),
             source,
         })?;
-        let truth = geometric::build(&raw.geometric, &rig, seed, path)?;
+        let invalid = |e: EntryError| ScenarioError::Invalid {
+            path: path.to_path_buf(),
+            key: e.key,
+            reason: e.reason,
+        };
+        let truth = geometric::build(&raw.geometric, &rig, seed).map_err(invalid)?;
         let mut effects = Vec::new();
         for (k, table) in raw.effects.iter().enumerate() {
             let key = format!("effects[{k}]");
             let ctx = ParseCtx {
-                path,
                 key: &key,
                 chain: &rig.chain,
                 truth: &truth,
@@ -158,7 +161,7 @@ impl Scenario {
                 seed,
                 index: k,
             };
-            effects.push(parse_effect(&ctx, table)?);
+            effects.push(parse_effect(&ctx, table).map_err(invalid)?);
         }
         let measurement = settings(&raw.measurement, &rig.instrument, path)?;
         Ok(Scenario {
@@ -241,4 +244,146 @@ fn settings(
         quantise,
         seconds_per_point,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    //! Every effect kind's scenario entry as the world reads and runs it.
+    use super::*;
+    use nalgebra::Vector3;
+    use rigcal_model::effects::EffectKind;
+    use std::collections::BTreeSet;
+
+    fn parse_error(effect: &str) -> String {
+        let text = format!("seed = 1\nrig = \"../rigs/rv-m2-ideal.toml\"\n[[effects]]\n{effect}");
+        match Scenario::parse(
+            &text,
+            Path::new(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../../sim/registry-test.toml"
+            )),
+            None,
+        ) {
+            Ok(_) => panic!("`{effect}` parsed"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn the_shipped_scenarios_name_every_kind_but_the_fitted_discrepancy() {
+        // The shipped scenarios name every kind between them; each parses to an effect that
+        // reports the kind it was read as.
+        let mut seen = BTreeSet::new();
+        for file in [
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../sim/rig-realistic.toml"),
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../sim/paper-sim.toml"),
+        ] {
+            let text = std::fs::read_to_string(file).expect("shipped scenario");
+            let sc = Scenario::parse(&text, Path::new(file), None).expect("shipped scenario");
+            let doc: toml::Table = toml::from_str(&text).expect("toml");
+            let names: Vec<&str> = doc
+                .get("effects")
+                .and_then(toml::Value::as_array)
+                .map(|a| {
+                    a.iter()
+                        .filter_map(|t| t.get("kind").and_then(toml::Value::as_str))
+                        .collect()
+                })
+                .unwrap_or_default();
+            assert_eq!(names.len(), sc.effects.len());
+            for (e, name) in sc.effects.iter().zip(names) {
+                assert_eq!(e.kind().name(), name);
+                seen.insert(e.kind());
+            }
+        }
+        // A fitted discrepancy is written by the twin, never shipped: its own tests parse it.
+        seen.insert(EffectKind::Discrepancy);
+        assert_eq!(seen, EffectKind::ALL.iter().copied().collect());
+    }
+
+    #[test]
+    fn a_missing_or_unknown_kind_lists_the_known_ones() {
+        let missing = parse_error("joint = 1\n");
+        assert!(missing.contains("effects[0].kind"), "{missing}");
+        assert!(
+            missing.contains(&format!("missing; one of {}", EffectKind::ALL[0])),
+            "{missing}"
+        );
+        let not_string = parse_error("kind = 3\n");
+        assert!(not_string.contains("must be a string"), "{not_string}");
+        let unknown = parse_error("kind = \"gear_wobble\"\n");
+        for k in EffectKind::ALL {
+            assert!(unknown.contains(k.name()), "{unknown}");
+        }
+    }
+
+    fn scenario(effect: &str) -> Result<Scenario, ScenarioError> {
+        let text = format!(
+            "seed = 1\nrig = \"../rigs/rv-m2-ideal.toml\"\n[measurement]\nnoise_mm = 0.0\n[[effects]]\nkind = \"discrepancy\"\n{effect}"
+        );
+        Scenario::parse(
+            &text,
+            Path::new(concat!(
+                env!("CARGO_MANIFEST_DIR"),
+                "/../../sim/discrepancy-test.toml"
+            )),
+            None,
+        )
+    }
+
+    fn tip(sc: &Scenario, q: &[f64]) -> Vector3<f64> {
+        sc.world().noiseless().true_position(q)
+    }
+
+    #[test]
+    fn a_joint_spline_moves_the_tip_as_its_joint_error_does() {
+        // Joint 2's error: 0.05° everywhere (B-splines sum to one), so the tip moves as a
+        // 0.05° change of q2 would.
+        let coefs = ["0.05"; 7].join(", ");
+        let sc = scenario(&format!(
+            "[[effects.terms]]\ndepends_on = \"other_joint_angle\"\njoint = 2\ndriver_joint = 1\nbasis = \"spline\"\nrange_deg = [-150.0, 150.0]\nintervals = 4\ncoefficients_deg = [{coefs}]\n"
+        ))
+        .expect("parses");
+        let plain = scenario(
+            "[[effects.terms]]\ndepends_on = \"time\"\nbasis = \"spline\"\nrange_s = [0.0, 1.0]\nintervals = 1\nx_mm = [0.0, 0.0, 0.0, 0.0]\ny_mm = [0.0, 0.0, 0.0, 0.0]\nz_mm = [0.0, 0.0, 0.0, 0.0]\n",
+        )
+        .expect("parses");
+        let q = [0.3, -0.2, -1.8, 0.0, 0.0];
+        let mut q2 = q;
+        q2[1] += 0.05f64.to_radians();
+        let d = (tip(&sc, &q) - tip(&plain, &q2)).norm();
+        assert!(d < 1e-9, "{d}");
+    }
+
+    #[test]
+    fn a_position_term_displaces_the_tip_by_its_radial_sum() {
+        let sc = scenario(
+            "[[effects.terms]]\ndepends_on = \"position\"\nbasis = \"radial\"\ncentres_mm = [[0.0, 0.0, 0.0]]\nwidth_mm = 1e6\nx_mm = [0.1]\ny_mm = [-0.2]\nz_mm = [0.3]\n",
+        )
+        .expect("parses");
+        let plain = scenario(
+            "[[effects.terms]]\ndepends_on = \"position\"\nbasis = \"radial\"\ncentres_mm = [[0.0, 0.0, 0.0]]\nwidth_mm = 1e6\nx_mm = [0.0]\ny_mm = [0.0]\nz_mm = [0.0]\n",
+        )
+        .expect("parses");
+        let q = [0.3, -0.2, -1.8, 0.0, 0.0];
+        // A very wide radial function is ≈ 1 at any reachable tip.
+        let d = tip(&sc, &q) - tip(&plain, &q);
+        assert!((d - Vector3::new(0.1, -0.2, 0.3)).norm() < 1e-6, "{d}");
+    }
+
+    #[test]
+    fn a_wrong_basis_or_count_says_what_is_expected() {
+        let e = scenario(
+            "[[effects.terms]]\ndepends_on = \"position\"\nbasis = \"spline\"\nrange_s = [0.0, 1.0]\nintervals = 2\n",
+        )
+        .expect_err("position splines are refused")
+        .to_string();
+        assert!(e.contains("radial"), "{e}");
+        let e = scenario(
+            "[[effects.terms]]\ndepends_on = \"own_joint_angle\"\njoint = 1\nbasis = \"spline\"\nrange_deg = [-10.0, 10.0]\nintervals = 2\ncoefficients_deg = [0.0]\n",
+        )
+        .expect_err("one coefficient for five functions")
+        .to_string();
+        assert!(e.contains("has 1 values; the basis has 5 functions"), "{e}");
+    }
 }

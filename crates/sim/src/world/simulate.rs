@@ -4,10 +4,11 @@
 //! Poses are taken in the order given, `seconds_per_point` apart (scenario `[measurement]`);
 //! every random draw depends on (seed, seq, attempt) only, so a seed gives the same bytes.
 
-use super::{setup_rng, Scenario};
+use super::scenario::Scenario;
 use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::{Recording, RegistrationInfo, SessionInfo};
 use rigcal_core::rig::{Instrument, Rig};
+use rigcal_model::effects::setup_rng;
 use rigcal_model::identification::random_poses;
 use std::path::{Path, PathBuf};
 

@@ -1,143 +1,18 @@
-//! Writing a scenario file: an updated twin ([`crate::twin::learn`]) as TOML, through the
-//! serializer, so what is written is what [`Scenario::parse`] reads.
+//! Writing a scenario file: an updated twin ([`crate::twin::learn`](mod@crate::twin::learn)) as
+//! TOML, through the serializer, so what is written is what [`Scenario::parse`] reads.
 //!
 //! The old file's keys are kept (description, seed, measurement settings and its `[[effects]]`
 //! tables as written, so effects drawn from the seed draw the same); the rig path is made
 //! relative to the new file; `[geometric]` becomes explicit values of every non-zero parameter
 //! (mm, degrees) — a random draw would not reproduce a fitted geometry; new effects are appended.
-//! What the serializer cannot carry (comments: a flagged discrepancy) is appended as text.
+//! What the serializer cannot carry (comments: a flagged discrepancy) is appended as text. Each
+//! new effect's table is written by its own file in [`rigcal_model::effects`]
+//! (`scenario_entry`).
 
 use super::scenario::{Scenario, ScenarioError};
 use rigcal_core::kinematics::{ErrorParams, Robot};
-use rigcal_core::rig::Rig;
+use rigcal_model::effects::{float, NewEffect};
 use std::path::{Component, Path, PathBuf};
-
-/// A term of an updated scenario, as the world writes it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum EffectKind {
-    /// Lost motion of a joint (0-based); coefficient b (rad or mm).
-    Backlash(usize),
-    /// Harmonic `order` of a joint's cyclic error; coefficients A cos φ, A sin φ (rad).
-    Transmission(usize, u32),
-    /// Gravity compliance of a joint with the rig's link masses; coefficient rad/(N·m).
-    Compliance(usize),
-    /// Warm-up drift of a joint; coefficient A (rad or mm).
-    DriftJoint(usize),
-    /// Warm-up drift of the tip along an axis; coefficient A (mm).
-    DriftAxis(usize),
-}
-
-/// An effect to append: its `[[effects]]` table and a one-line summary.
-#[derive(Debug, Clone, PartialEq)]
-pub struct NewEffect {
-    /// The table, `kind` first.
-    pub table: toml::Table,
-    /// "lost_motion_deg = 0.04980".
-    pub summary: String,
-}
-
-/// A TOML float rounded to seven significant digits.
-pub(crate) fn float(v: f64) -> toml::Value {
-    // Seven significant digits: well under the noise, and readable.
-    let rounded: f64 = format!("{v:.7e}").parse().unwrap_or(v);
-    toml::Value::Float(rounded)
-}
-
-impl NewEffect {
-    /// The effect of `kind` with fitted coefficients `c` (internal units) and, for a drift,
-    /// time constant `tau_s`; an error says why it cannot be written (a negative lost motion
-    /// or compliance is not that physics).
-    pub fn of(rig: &Rig, kind: EffectKind, c: &[f64], tau_s: f64) -> Result<NewEffect, String> {
-        let joints = rig.chain.joints();
-        let mut t = toml::Table::new();
-        let file = |j: usize, v: f64| joints.get(j).map_or(v, |s| s.kind.to_file_units(v));
-        let summary = match kind {
-            EffectKind::Backlash(j) => {
-                let b = file(j, c[0]);
-                if b < 0.0 {
-                    return Err(format!(
-                        "the fitted lost motion is negative ({b:.5}): the joint overshoots, which backlash is not"
-                    ));
-                }
-                t.insert("kind".into(), "backlash".into());
-                t.insert("joint".into(), toml::Value::Integer(j as i64 + 1));
-                t.insert("lost_motion_deg".into(), float(b));
-                format!("lost_motion_deg = {b:.5}")
-            }
-            EffectKind::Transmission(j, order) => {
-                let a = c[0].hypot(c[1]).to_degrees();
-                let phase = c[1].atan2(c[0]).to_degrees();
-                let mut h = toml::Table::new();
-                h.insert("order".into(), toml::Value::Integer(i64::from(order)));
-                h.insert("amplitude_deg".into(), float(a));
-                h.insert("phase_deg".into(), float(phase));
-                t.insert("kind".into(), "transmission_error".into());
-                t.insert("joint".into(), toml::Value::Integer(j as i64 + 1));
-                t.insert(
-                    "harmonics".into(),
-                    toml::Value::Array(vec![toml::Value::Table(h)]),
-                );
-                format!("order {order}, amplitude_deg = {a:.5}, phase_deg = {phase:.1}")
-            }
-            EffectKind::Compliance(j) => {
-                let per_nm = c[0].to_degrees();
-                if per_nm <= 0.0 {
-                    return Err(format!(
-                        "the fitted compliance is not positive ({per_nm:.6} deg/(N·m))"
-                    ));
-                }
-                let masses: Vec<toml::Value> = rig
-                    .link_masses
-                    .iter()
-                    .enumerate()
-                    .filter_map(|(k, m)| {
-                        let m = (*m)?;
-                        (m.kg > 0.0).then(|| {
-                            let mut mt = toml::Table::new();
-                            mt.insert("link".into(), toml::Value::Integer(k as i64 + 1));
-                            mt.insert("kg".into(), float(m.kg));
-                            mt.insert(
-                                "at_mm".into(),
-                                toml::Value::Array(m.com_mm.iter().map(|v| float(*v)).collect()),
-                            );
-                            toml::Value::Table(mt)
-                        })
-                    })
-                    .collect();
-                let mut jt = toml::Table::new();
-                jt.insert("joint".into(), toml::Value::Integer(j as i64 + 1));
-                jt.insert("deg_per_nm".into(), float(per_nm));
-                t.insert("kind".into(), "joint_compliance".into());
-                t.insert("masses".into(), toml::Value::Array(masses));
-                t.insert(
-                    "joints".into(),
-                    toml::Value::Array(vec![toml::Value::Table(jt)]),
-                );
-                format!("deg_per_nm = {per_nm:.6} (the rig's link masses)")
-            }
-            EffectKind::DriftJoint(j) => {
-                let a = file(j, c[0]);
-                t.insert("kind".into(), "thermal_drift".into());
-                t.insert("joint".into(), toml::Value::Integer(j as i64 + 1));
-                t.insert("amplitude_deg".into(), float(a));
-                t.insert("tau_s".into(), float(tau_s));
-                format!("amplitude_deg = {a:.5}, tau_s = {tau_s:.0}")
-            }
-            EffectKind::DriftAxis(ax) => {
-                let name = ["x", "y", "z"]
-                    .get(ax)
-                    .ok_or_else(|| "no such axis".to_string())?;
-                t.insert("kind".into(), "thermal_drift".into());
-                t.insert("axis".into(), (*name).into());
-                t.insert("amplitude_mm".into(), float(c[0]));
-                t.insert("tau_s".into(), float(tau_s));
-                format!("amplitude_mm = {:.5}, tau_s = {tau_s:.0}", c[0])
-            }
-        };
-        Ok(NewEffect { table: t, summary })
-    }
-}
 
 /// The text of `scenario` (read from `source`) updated with the geometry `truth` and the new
 /// `effects`, to be written at `out`.
@@ -253,10 +128,11 @@ fn relative_to(from: &Path, to: &Path) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rigcal_model::effects::{backlash, EffectKind};
 
     #[test]
     fn relative_paths_climb_to_the_common_directory() {
-        let here = std::env::current_dir().unwrap();
+        let here = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
         let r = relative_to(&here.join("sim"), &here.join("rigs/rv-m2-ideal.toml"));
         assert_eq!(r, PathBuf::from("../rigs/rv-m2-ideal.toml"));
     }
@@ -271,7 +147,7 @@ mod tests {
         let sc = Scenario::parse(&source, path, None).unwrap();
         let mut truth = sc.truth.clone();
         truth.set(0, truth.get(0) + 1e-4);
-        let b = NewEffect::of(&sc.rig, EffectKind::Backlash(1), &[3e-4], 0.0).unwrap();
+        let b = backlash::scenario_entry(&sc.rig.chain, 1, 3e-4).unwrap();
         let text = scenario_text(
             &sc,
             &source,
@@ -290,7 +166,7 @@ mod tests {
             assert!((back.truth.get(i) - truth.get(i)).abs() < 1e-9, "{i}");
         }
         assert_eq!(back.effects.len(), sc.effects.len() + 1);
-        assert_eq!(back.effects.last().unwrap().kind(), "backlash");
-        assert!(NewEffect::of(&sc.rig, EffectKind::Backlash(1), &[-3e-4], 0.0).is_err());
+        assert_eq!(back.effects.last().unwrap().kind(), EffectKind::Backlash);
+        assert!(backlash::scenario_entry(&sc.rig.chain, 1, -3e-4).is_err());
     }
 }

@@ -1,5 +1,7 @@
-//! Simulated back-ends that speak each device's protocol byte for byte (or frame for frame),
-//! take their physics from a [`RigPhysics`], and keep time on a [`Clock`](crate::devices::clock::Clock).
+//! What every simulated back-end shares: an emulator speaks its device's protocol byte for byte
+//! (or frame for frame), takes its physics from a [`RigPhysics`], and keeps time on a
+//! [`Clock`](crate::devices::clock::Clock). The emulators themselves live with their drivers
+//! ([`crate::devices::drivers`]); a simulated point sensor, which speaks no protocol yet, here.
 //!
 //! Each emulator is a state machine fed with input at a time and asked for the output due at a
 //! time ([`ByteEmulator`], [`FrameEmulator`]). Two ways to run one:
@@ -11,13 +13,12 @@
 //!   [`serve_bytes`], or behind a [`CanBus`] with [`serve_frames`]; the table speaks slcan on a
 //!   byte transport through [`SlcanAdapter`].
 //!
-//! Fault injection is per emulator, through its shared `faults` handle.
+//! Fault injection is per emulator, through its shared handle of the device kind's
+//! [`faults`].
 
-pub mod arm;
-pub mod panel;
+pub mod faults;
 pub mod physics;
 pub mod sensor;
-pub mod table;
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -36,7 +37,7 @@ pub use crate::devices::profile::Profile;
 pub use physics::{NominalPhysics, PinState, RigPhysics, SharedPhysics};
 
 /// An emulated byte-stream device.
-pub trait ByteEmulator: Send {
+pub trait ByteEmulator: Send + std::fmt::Debug {
     /// Bytes from the host, received at `now`.
     fn input(&mut self, bytes: &[u8], now: Duration);
     /// Bytes due for the host at or before `now`.
@@ -46,13 +47,37 @@ pub trait ByteEmulator: Send {
 }
 
 /// An emulated CAN device (or several on one bus).
-pub trait FrameEmulator: Send {
+pub trait FrameEmulator: Send + std::fmt::Debug {
     /// A frame from the bus, received at `now`.
     fn input(&mut self, frame: &CanFrame, now: Duration);
     /// Frames due on the bus at or before `now`.
     fn output(&mut self, now: Duration) -> Vec<CanFrame>;
     /// The earliest time after `now`, not later than `horizon`, at which output may become due.
     fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration>;
+}
+
+impl<E: ByteEmulator + ?Sized> ByteEmulator for Box<E> {
+    fn input(&mut self, bytes: &[u8], now: Duration) {
+        (**self).input(bytes, now)
+    }
+    fn output(&mut self, now: Duration) -> Vec<u8> {
+        (**self).output(now)
+    }
+    fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration> {
+        (**self).next_event(now, horizon)
+    }
+}
+
+impl<E: FrameEmulator + ?Sized> FrameEmulator for Box<E> {
+    fn input(&mut self, frame: &CanFrame, now: Duration) {
+        (**self).input(frame, now)
+    }
+    fn output(&mut self, now: Duration) -> Vec<CanFrame> {
+        (**self).output(now)
+    }
+    fn next_event(&mut self, now: Duration, horizon: Duration) -> Option<Duration> {
+        (**self).next_event(now, horizon)
+    }
 }
 
 /// Locks a mutex, ignoring poisoning (the data stays usable for simulations).

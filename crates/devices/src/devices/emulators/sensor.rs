@@ -69,7 +69,7 @@ mod tests {
     fn reads_the_nominal_tip_after_its_latency() {
         let rig = Rig::load(std::path::Path::new(concat!(
             env!("CARGO_MANIFEST_DIR"),
-            "/rigs/rv-m2-ideal.toml"
+            "/../../rigs/rv-m2-ideal.toml"
         )))
         .expect("rig");
         let q = vec![0.3, 0.9, -0.4, 0.0, 0.0];

@@ -37,7 +37,7 @@ use rigcal_core::kinematics::{
 use std::sync::LazyLock;
 
 /// Link lengths of Table 4 (mm).
-pub const LINK_MM: f64 = 330.0;
+const LINK_MM: f64 = 330.0;
 
 /// A rectangle of joint space (rad).
 #[derive(Debug, Clone, Copy, PartialEq)]

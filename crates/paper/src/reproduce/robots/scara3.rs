@@ -23,7 +23,7 @@ use rigcal_core::kinematics::{wrap, HeldChain};
 use rigcal_core::rig::Rig;
 
 /// The rig file of the nominal robot.
-pub const RIG_TOML: &str = include_str!("../../../../../rigs/scara3.toml");
+const RIG_TOML: &str = include_str!("../../../../../rigs/scara3.toml");
 
 /// Number of error values: 13 geometric, 5 compliance, 8 force coefficients.
 pub const N_ERRORS: usize = 26;
@@ -36,7 +36,7 @@ pub fn nominal() -> Result<(Rig, HeldChain), rigcal_core::rig::RigError> {
 }
 
 /// Table 13–15 constant errors δL_c (mm, rad, m/N, rad/(N·m), force coefficients).
-pub fn constant_errors() -> [f64; N_ERRORS] {
+fn constant_errors() -> [f64; N_ERRORS] {
     let m = 1e-3; // mrad
     [
         2.5,
@@ -69,7 +69,7 @@ pub fn constant_errors() -> [f64; N_ERRORS] {
 }
 
 /// Random amplitudes δL_r of Tables 13–15.
-pub fn random_amplitudes() -> [f64; N_ERRORS] {
+fn random_amplitudes() -> [f64; N_ERRORS] {
     std::array::from_fn(|k| match k {
         0..=12 => {
             if [2, 3, 4, 6, 7, 8, 10, 11].contains(&k) {

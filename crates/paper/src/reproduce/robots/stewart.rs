@@ -26,11 +26,11 @@ use rigcal_core::kinematics::{
 use std::sync::LazyLock;
 
 /// Gripper offset from the platform (mm).
-pub const Z_PG_MM: f64 = 200.0;
+const Z_PG_MM: f64 = 200.0;
 /// Base hinge circle radius (mm).
-pub const BASE_RADIUS_MM: f64 = 1000.0;
+const BASE_RADIUS_MM: f64 = 1000.0;
 /// Platform hinge circle radius (mm).
-pub const PLATFORM_RADIUS_MM: f64 = 500.0;
+const PLATFORM_RADIUS_MM: f64 = 500.0;
 
 /// Geometry of a Stewart platform (nominal or with errors).
 #[derive(Debug, Clone, PartialEq)]
@@ -52,22 +52,11 @@ impl Default for Stewart {
 }
 
 /// The pose matrix M_bg of S = [x, y, z, ψ, θ, φ].
-pub fn pose_matrix(s: &[f64]) -> Isometry3<f64> {
+fn pose_matrix(s: &[f64]) -> Isometry3<f64> {
     let r = UnitQuaternion::from_axis_angle(&Vector3::x_axis(), s[3])
         * UnitQuaternion::from_axis_angle(&Vector3::y_axis(), s[4])
         * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), s[5]);
     Isometry3::from_parts(Translation3::new(s[0], s[1], s[2]), r)
-}
-
-/// S = [x, y, z, ψ, θ, φ] of a pose matrix (θ within ±90°).
-pub fn pose_of(m: &Isometry3<f64>) -> Vec<f64> {
-    let r = m.rotation.to_rotation_matrix();
-    let r = r.matrix();
-    let theta = r[(0, 2)].clamp(-1.0, 1.0).asin();
-    let psi = (-r[(1, 2)]).atan2(r[(2, 2)]);
-    let phi = (-r[(0, 1)]).atan2(r[(0, 0)]);
-    let t = m.translation.vector;
-    vec![t.x, t.y, t.z, psi, theta, phi]
 }
 
 impl Stewart {
@@ -94,7 +83,7 @@ impl Stewart {
     }
 
     /// Leg lengths for gripper pose `s` (eq. 6), before the length offsets.
-    pub fn leg_lengths(&self, s: &[f64]) -> [f64; 6] {
+    fn leg_lengths(&self, s: &[f64]) -> [f64; 6] {
         let m_bp = pose_matrix(s) * self.platform_to_gripper.inverse();
         std::array::from_fn(|i| {
             let p = m_bp * Point3::from(self.platform[i]);
@@ -168,7 +157,7 @@ impl Stewart {
     }
 
     /// ∂l/∂S (6 × 6), by central differences of the closed-form leg lengths.
-    pub fn leg_jacobian(&self, s: &[f64]) -> DMatrix<f64> {
+    fn leg_jacobian(&self, s: &[f64]) -> DMatrix<f64> {
         let mut j = DMatrix::zeros(6, 6);
         for c in 0..6 {
             let h = if c < 3 { 1e-5 } else { 1e-8 };

@@ -29,8 +29,8 @@ pub use runs::{run_scheme, SchemeRun};
 pub use scara2_schemes::{table5, TABLE5_HIDDEN, TABLE5_LM_ITERATIONS};
 pub use scara3_direct::table18;
 pub use selection::{
-    check_figures, reproduced_table, run_fig7, run_table, tables_for, write_fig7, write_table,
-    ReproduceError, REPRODUCED_FIGURES, REPRODUCED_TABLES,
+    check_figures, reproduce, reproduced_table, run_fig7, run_table, tables_for, write_fig7,
+    write_table, ReproduceError, REPRODUCED_FIGURES, REPRODUCED_TABLES,
 };
 pub use stewart_platform::table11;
 

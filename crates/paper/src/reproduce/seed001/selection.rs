@@ -142,6 +142,56 @@ pub fn write_fig7(fig: &Fig7, dir: &Path) -> Result<(PathBuf, PathBuf), Reproduc
     Ok((svg, csv))
 }
 
+/// Reproduces the tables that carry `tables` and the figures of `figures` (all of them when
+/// both are empty), `hidden` neurons for the networks the paper does not size, telling `say`
+/// each one's text with how long it took; with `out`, each is also written there.
+pub fn reproduce(
+    tables: &[u32],
+    figures: &[u32],
+    o: &ReproOptions,
+    hidden: usize,
+    out: Option<&Path>,
+    say: &mut dyn FnMut(&str),
+) -> Result<(), ReproduceError> {
+    let (tables, figures) = if tables.is_empty() && figures.is_empty() {
+        (REPRODUCED_TABLES.to_vec(), REPRODUCED_FIGURES.to_vec())
+    } else {
+        (tables_for(tables)?, figures.to_vec())
+    };
+    check_figures(&figures)?;
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).map_err(|source| ReproduceError::Write {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    }
+    for key in tables {
+        let (table, took) = run_table(key, o, hidden)?;
+        let text = table.render();
+        say(&format!("{text}  ({:.1} s)\n\n", took.as_secs_f64()));
+        if let Some(dir) = out {
+            write_table(dir, key, &text)?;
+        }
+    }
+    if figures.contains(&7) {
+        let (fig, took) = run_fig7(o)?;
+        say(&format!(
+            "{}  ({:.1} s)\n\n",
+            fig.render(),
+            took.as_secs_f64()
+        ));
+        if let Some(dir) = out {
+            let (svg, csv) = write_fig7(&fig, dir)?;
+            say(&format!(
+                "plot: {}  data: {}\n",
+                svg.display(),
+                csv.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
