@@ -4,7 +4,7 @@
 
 use rigcal_core::recording::{Recording, Status};
 use rigcal_core::rig::Rig;
-use rigcal_devices::devices::controller::CommandPath;
+use rigcal_devices::devices::CommandPath;
 use rigcal_paper::sec7::{self, Sec7Files, Sec7Options, Sec7Report};
 use std::path::Path;
 

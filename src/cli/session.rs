@@ -12,7 +12,7 @@ use rigcal_devices::session::{
 use rigcal_sim::emulation::open_rig;
 use std::path::PathBuf;
 
-/// Arguments of `rigcal session`.
+/// Arguments of `rigcal session` (one field per flag or flag group: more than 12).
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The rig file.

@@ -88,7 +88,9 @@ pub fn resolution_floor(rig: &Rig, commands: &[Vec<f64>]) -> Vec<f64> {
 /// its servo resolution: the floor of `MP` compensation on the rig. `None` if the rig's
 /// controller has no Cartesian kinematics or a command has no solution.
 pub fn cartesian_floor(rig: &Rig, commands: &[Vec<f64>]) -> Option<Vec<f64>> {
-    let k = rigcal_devices::devices::controller::ControllerKinematics::of_rig(rig).ok()?;
+    let k =
+        rigcal_devices::devices::drivers::movemaster::controller::ControllerKinematics::of_rig(rig)
+            .ok()?;
     let servo = rigcal_devices::config::DevicesConfig::read_opt(rig)
         .as_ref()
         .map_or(0.001, |d| d.arm.sim_servo_resolution_deg);
@@ -102,7 +104,7 @@ pub fn cartesian_floor(rig: &Rig, commands: &[Vec<f64>]) -> Option<Vec<f64>> {
 }
 
 /// The rig's command path for compensated moves.
-pub fn command_path(rig: &Rig) -> rigcal_devices::devices::controller::CommandPath {
+pub fn command_path(rig: &Rig) -> rigcal_devices::devices::CommandPath {
     rigcal_devices::config::DevicesConfig::read_opt(rig)
         .as_ref()
         .map(|d| d.arm.command_path)

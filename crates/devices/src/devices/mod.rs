@@ -53,12 +53,3 @@ pub use traits::{
 };
 #[cfg(any(test, feature = "mock"))]
 pub use traits::{MockArm, MockPanel, MockPointSensor, MockTable};
-
-/// The arm controller's kinematics and the command path under their former path
-/// (`rigcal_devices::devices::controller`), for callers outside this crate: the Movemaster's
-/// now live with its driver ([`drivers::movemaster::controller`]), the command path in
-/// [`command_path`].
-pub mod controller {
-    pub use crate::devices::command_path::CommandPath;
-    pub use crate::devices::drivers::movemaster::controller::ControllerKinematics;
-}
