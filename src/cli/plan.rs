@@ -4,6 +4,7 @@
 use anyhow::{Context, Result};
 use rigcal_devices::session::{
     compare, comparison_text, plan, write_plan, ContactProcedure, Ordering, PlanOptions,
+    MAX_PLAN_POINTS,
 };
 use rigcal_sim::world::Scenario;
 use std::path::PathBuf;
@@ -18,8 +19,8 @@ pub struct Args {
     /// A scenario (sim/*.toml) whose seed to use.
     #[arg(long)]
     scenario: Option<PathBuf>,
-    /// Measurement points wanted (drift-reference re-measurements come on top).
-    #[arg(long)]
+    /// Measurement points wanted, 1 to 1000000 (drift-reference re-measurements come on top).
+    #[arg(long, value_parser = point_count)]
     points: usize,
     /// Regions of the workspace (rounded up to a power of two).
     #[arg(long, default_value_t = 8)]
@@ -45,6 +46,22 @@ pub struct Args {
     procedure: ContactProcedure,
     #[command(flatten)]
     out: super::OutArg,
+}
+
+/// Parses a count of points or poses (`--points`, `--random`): 1 to [`MAX_PLAN_POINTS`]. Checked
+/// as the flag is read, so a zero count is refused instead of "finishing" with nothing, and a
+/// huge one before any work or allocation.
+pub fn point_count(s: &str) -> Result<usize, String> {
+    let n: usize = s.trim().parse().map_err(|_| {
+        format!("`{s}` is not a whole number; give a count from 1 to {MAX_PLAN_POINTS}")
+    })?;
+    match n {
+        0 => Err(format!("0 points: give a count from 1 to {MAX_PLAN_POINTS}")),
+        n if n > MAX_PLAN_POINTS => Err(format!(
+            "{n} is above the maximum of {MAX_PLAN_POINTS}; split a larger campaign into several sessions"
+        )),
+        n => Ok(n),
+    }
 }
 
 pub fn run(a: Args) -> Result<()> {

@@ -30,8 +30,8 @@ pub struct Args {
     /// A plan from `rigcal plan`.
     #[arg(long, conflicts_with = "points")]
     plan: Option<PathBuf>,
-    /// Plan this many points now.
-    #[arg(long)]
+    /// Plan this many points now (1 to 1000000).
+    #[arg(long, value_parser = super::plan::point_count)]
     points: Option<usize>,
     /// Regions of the workspace when planning here.
     #[arg(long, default_value_t = 8)]

@@ -27,8 +27,9 @@ pub struct Args {
     /// CSV of poses with joint columns q1_deg…, measured in that order.
     #[arg(long)]
     poses: Option<PathBuf>,
-    /// Measure N poses drawn uniformly within the joint limits (held joints at their values).
-    #[arg(long)]
+    /// Measure N poses drawn uniformly within the joint limits (held joints at their values);
+    /// N from 1 to 1000000.
+    #[arg(long, value_parser = super::plan::point_count)]
     random: Option<usize>,
     /// Overrides the scenario's seed.
     #[arg(long)]

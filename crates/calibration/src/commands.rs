@@ -3,18 +3,27 @@
 //! effects or a consistent approach is asked for, the hybrid one with via moves
 //! ([`compensate_path`]); on a rig whose arm moves on the `cartesian` command path, each plain
 //! command's `MP` pose beside it.
+//!
+//! A target that cannot be compensated does not stop the others unless `strict` is asked for:
+//! its row keeps its place with empty command cells, and a `status` column, appended last so
+//! positional readers still find the joints, says `ok` or why not. Empty cells rather than a
+//! marker such as `NaN`: a CSV reader takes an empty cell as missing (pandas: NaN in a float
+//! column), whereas `NaN` parses as a number in Rust and numpy and could reach a controller as
+//! a command, and a word would turn the column into text.
 
-use rigcal_core::kinematics::Robot;
+use rigcal_core::kinematics::{IkError, Robot};
 use rigcal_core::recording::{commands_csv, read_targets, RecordingError, Target};
 use rigcal_devices::devices::drivers::movemaster::controller::{
     with_pose_columns, ControllerKinematics, PoseError,
 };
 use rigcal_devices::devices::CommandPath;
 use rigcal_model::compensation::{
-    compensate_targets, CompensationError, CompensationOptions, TargetError,
+    compensate_each, CompensationError, CompensationOptions, TargetError,
 };
 use rigcal_model::model::effects::ModelEffect;
-use rigcal_model::model::hybrid::{compensate_path, path_csv, Approach, HybridArm, HybridOptions};
+use rigcal_model::model::hybrid::{
+    compensate_path_each, path_csv, Approach, HybridArm, HybridCommand, HybridOptions,
+};
 use rigcal_model::model::{LoadedModel, ModelError, ModelFile};
 use std::path::{Path, PathBuf};
 
@@ -26,6 +35,9 @@ pub struct CommandOptions {
     pub approach: Approach,
     /// Payload at the tool (kg), for the model's joint compliance.
     pub payload_kg: f64,
+    /// Fail on the first target that cannot be compensated (no commands at all) instead of
+    /// giving the others with a `status` column.
+    pub strict: bool,
 }
 
 /// The commands of a targets file, and what `rigcal compensate` says about them.
@@ -33,12 +45,17 @@ pub struct CommandOptions {
 pub struct Commands {
     /// The commands as CSV: one row of joint commands (`q1_deg…`) per target, or with effects
     /// or a consistent approach one row per move with a `move` column; the `MP` pose columns
-    /// on a `cartesian` rig.
+    /// on a `cartesian` rig; when a target could not be compensated, its row with empty cells
+    /// and a last `status` column (`ok` or why not).
     pub csv: String,
     /// The largest modelled position error left (mm).
     pub worst_mm: f64,
-    /// Targets compensated.
+    /// Targets in the file.
     pub targets: usize,
+    /// The targets that could not be compensated, in order (empty with `strict`).
+    pub failed: Vec<TargetError>,
+    /// The targets file.
+    pub path: PathBuf,
     /// The rig's command path for compensated moves.
     pub command_path: CommandPath,
     /// The effects the model compensates beside the geometry.
@@ -52,13 +69,78 @@ impl Commands {
         for e in &self.effects {
             s.push_str(&format!("compensating {}\n", e.text()));
         }
-        s.push_str(&format!(
-            "{} targets compensated (largest modelled error left {:.1e} mm); commands written to {}\n",
-            self.targets,
-            self.worst_mm,
-            out.display()
-        ));
+        if self.failed.is_empty() {
+            s.push_str(&format!(
+                "{} targets compensated (largest modelled error left {:.1e} mm); commands written to {}\n",
+                self.targets,
+                self.worst_mm,
+                out.display()
+            ));
+        } else {
+            s.push_str(&format!(
+                "{} of {} targets compensated (largest modelled error left {:.1e} mm), {} not reachable; commands written to {} with a `status` column (empty commands where not `ok`)\n",
+                self.targets - self.failed.len(),
+                self.targets,
+                self.worst_mm,
+                self.failed.len(),
+                out.display()
+            ));
+        }
         s
+    }
+
+    /// Whether every target was compensated.
+    pub fn complete(&self) -> bool {
+        self.failed.is_empty()
+    }
+
+    /// Each target that could not be compensated: `<targets file>: line N: why`, one a line.
+    pub fn failures_text(&self) -> String {
+        self.failed
+            .iter()
+            .map(|e| format!("{}: line {}: {}\n", self.path.display(), e.line, e.source))
+            .collect()
+    }
+}
+
+/// The `status` cell of a target that could not be compensated: the reason, briefly (the
+/// target's position is in its row's line of the targets file).
+pub fn status_text(e: &CompensationError) -> String {
+    match e {
+        CompensationError::Ik(IkError::Unreachable { closest_mm, .. }) => {
+            format!("unreachable: the arm comes {closest_mm:.3} mm close at best")
+        }
+        CompensationError::Ik(IkError::JointLimit {
+            joint,
+            value,
+            min,
+            max,
+            unit,
+            ..
+        }) => format!(
+            "joint limit: joint {joint} would be at {value:.3} {unit} outside {min:.3}..{max:.3} {unit}"
+        ),
+        CompensationError::Ik(IkError::Singular { sigma_min, .. }) => {
+            format!("singular pose: smallest singular value {sigma_min:.2e} mm/unit")
+        }
+        CompensationError::JointLimit {
+            joint,
+            value,
+            min,
+            max,
+            unit,
+            ..
+        } => format!(
+            "joint limit: compensated joint {joint} at {value:.4} {unit} outside {min}..{max} {unit}"
+        ),
+        CompensationError::NotConverged {
+            residual_mm,
+            iterations,
+            ..
+        } => format!(
+            "not converged: {residual_mm:.2e} mm left after {iterations} iterations"
+        ),
+        other => format!("not compensated: {other}"),
     }
 }
 
@@ -111,57 +193,126 @@ pub fn compensate_files(
     let command_path = rigcal_devices::config::DevicesConfig::read_opt(&loaded.rig)
         .map(|d| d.arm.command_path)
         .unwrap_or_default();
-    let (csv, worst_mm) = if hybrid {
-        hybrid_commands(&loaded, &list, opts).map_err(at_line)?
+    let (rows, worst_mm, failed) = if hybrid {
+        hybrid_commands(&loaded, &list, opts)
     } else {
-        let (csv, worst, joints) = plain_commands(&loaded, &list).map_err(at_line)?;
-        let csv = if command_path == CommandPath::Cartesian {
-            with_pose_columns(&csv, &ControllerKinematics::of_rig(&loaded.rig)?, &joints)
-        } else {
-            csv
-        };
-        (csv, worst)
+        plain_commands(&loaded, &list, command_path)?
     };
+    let mut failed = failed;
+    if opts.strict && !failed.is_empty() {
+        return Err(at_line(failed.remove(0)));
+    }
     Ok(Commands {
-        csv,
+        csv: rows.csv(&failed),
         worst_mm,
         targets: list.len(),
+        failed,
+        path: targets.to_path_buf(),
         command_path,
         effects: loaded.file.effects,
     })
 }
 
-/// The geometric compensation: the CSV, the largest error left (mm) and the commands (rad).
+/// The CSV of the targets compensated, and where the others go.
+struct Rows {
+    /// Header and rows of the targets compensated, as if they were the only ones.
+    compensated: String,
+    /// Per target in order: the rows it takes in `compensated` (a via move and its command
+    /// make two), or None when it could not be compensated.
+    rows: Vec<Option<usize>>,
+    /// The `move` cell of a target's row, when the CSV has that column.
+    move_column: bool,
+}
+
+impl Rows {
+    /// The CSV written: as `compensated` when every target is there, else one row per move
+    /// with empty cells for each target missing and a last `status` column.
+    fn csv(&self, failed: &[TargetError]) -> String {
+        if failed.is_empty() {
+            return self.compensated.clone();
+        }
+        let mut lines = self.compensated.lines();
+        let header = lines.next().unwrap_or_default();
+        let columns = header.split(',').count();
+        let mut out = format!("{header},status\n");
+        let mut reasons = failed.iter();
+        for rows in &self.rows {
+            match rows {
+                Some(n) => {
+                    for line in lines.by_ref().take(*n) {
+                        out.push_str(line);
+                        out.push_str(",ok\n");
+                    }
+                }
+                None => {
+                    let empty = columns - usize::from(self.move_column);
+                    out.push_str(&",".repeat(empty.saturating_sub(1)));
+                    if self.move_column {
+                        out.push_str(",target");
+                    }
+                    let why = reasons
+                        .next()
+                        .map(|e| status_text(&e.source))
+                        .unwrap_or_default();
+                    out.push(',');
+                    out.push_str(&csv_field(&why));
+                    out.push('\n');
+                }
+            }
+        }
+        out
+    }
+}
+
+/// A CSV cell holding `text`: quoted when it holds a comma, quote or line break.
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
+/// The geometric compensation: the rows, the largest error left (mm) and the targets that
+/// could not be compensated; on a `cartesian` rig each command's `MP` pose beside it.
 fn plain_commands(
     loaded: &LoadedModel,
     targets: &[(u64, Target)],
-) -> Result<(String, f64, Vec<Vec<f64>>), TargetError> {
+    command_path: CommandPath,
+) -> Result<(Rows, f64, Vec<TargetError>), CommandsError> {
     let chain = &loaded.rig.chain;
-    let commands = compensate_targets(
+    let results = compensate_each(
         chain,
         loaded.errors.as_ref(),
         loaded.rig.held(),
         targets,
         &CompensationOptions::default(),
-    )?;
-    let worst = commands.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
-    let text = commands_csv(
-        chain.joints(),
-        commands.iter().map(|c| c.command.as_slice()),
     );
-    Ok((
-        text,
-        worst,
-        commands.into_iter().map(|c| c.command).collect(),
-    ))
+    let rows = results.iter().map(|r| r.as_ref().ok().map(|_| 1)).collect();
+    let (commands, failed) = split(results);
+    let worst = commands.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
+    let joints: Vec<Vec<f64>> = commands.into_iter().map(|c| c.command).collect();
+    let text = commands_csv(chain.joints(), joints.iter().map(Vec::as_slice));
+    let compensated = if command_path == CommandPath::Cartesian {
+        with_pose_columns(&text, &ControllerKinematics::of_rig(&loaded.rig)?, &joints)
+    } else {
+        text
+    };
+    let rows = Rows {
+        compensated,
+        rows,
+        move_column: false,
+    };
+    Ok((rows, worst, failed))
 }
 
-/// The hybrid compensation (effects, via moves): the CSV and the largest error left (mm).
+/// The hybrid compensation (effects, via moves): the rows, the largest error left (mm) and the
+/// targets that could not be compensated.
 fn hybrid_commands(
     loaded: &LoadedModel,
     targets: &[(u64, Target)],
     opts: &CommandOptions,
-) -> Result<(String, f64), TargetError> {
+) -> (Rows, f64, Vec<TargetError>) {
     let rig = &loaded.rig;
     let arm = HybridArm {
         chain: &rig.chain,
@@ -173,14 +324,41 @@ fn hybrid_commands(
         payload_kg: opts.payload_kg,
         ..HybridOptions::default()
     };
-    let path = compensate_path(
+    let results = compensate_path_each(
         &arm,
         loaded.errors.as_ref(),
         &loaded.file.effects,
         targets,
         None,
         &opts,
-    )?;
+    );
+    let rows = results
+        .iter()
+        .map(|r| {
+            r.as_ref()
+                .ok()
+                .map(|c: &HybridCommand| 1 + usize::from(c.via.is_some()))
+        })
+        .collect();
+    let (path, failed) = split(results);
     let worst = path.iter().map(|c| c.residual_mm).fold(0.0, f64::max);
-    Ok((path_csv(rig.chain.joints(), &path), worst))
+    let rows = Rows {
+        compensated: path_csv(rig.chain.joints(), &path),
+        rows,
+        move_column: true,
+    };
+    (rows, worst, failed)
+}
+
+/// The results compensated and the failures, each in order.
+fn split<T>(results: Vec<Result<T, TargetError>>) -> (Vec<T>, Vec<TargetError>) {
+    let mut done = Vec::with_capacity(results.len());
+    let mut failed = Vec::new();
+    for r in results {
+        match r {
+            Ok(c) => done.push(c),
+            Err(e) => failed.push(e),
+        }
+    }
+    (done, failed)
 }

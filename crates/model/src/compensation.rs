@@ -151,7 +151,7 @@ pub struct TargetError {
 /// [`rigcal_core::recording::read_targets`] gives them). A position target's nominal inverse
 /// kinematics starts from the previous command, so a path stays on one branch; a joint target's
 /// nominal position is the target, reached from its own joints, with the joints the rig holds
-/// kept at the target's values.
+/// kept at the target's values. Stops at the first target that cannot be compensated.
 pub fn compensate_targets(
     robot: &dyn Robot,
     model: &dyn ErrorModel,
@@ -159,13 +159,40 @@ pub fn compensate_targets(
     targets: &[(u64, Target)],
     opts: &CompensationOptions,
 ) -> Result<Vec<Compensated>, TargetError> {
+    targets_in_order(robot, model, held, targets, opts, true)
+        .into_iter()
+        .collect()
+}
+
+/// [`compensate_targets`] past failures: one result per target, in order. A target that cannot
+/// be compensated is skipped, so the next one starts from the last command compensated (where
+/// the arm would be).
+pub fn compensate_each(
+    robot: &dyn Robot,
+    model: &dyn ErrorModel,
+    held: &[Option<f64>],
+    targets: &[(u64, Target)],
+    opts: &CompensationOptions,
+) -> Vec<Result<Compensated, TargetError>> {
+    targets_in_order(robot, model, held, targets, opts, false)
+}
+
+/// The targets in order, the last result an error when `stop_at_first` and one failed.
+fn targets_in_order(
+    robot: &dyn Robot,
+    model: &dyn ErrorModel,
+    held: &[Option<f64>],
+    targets: &[(u64, Target)],
+    opts: &CompensationOptions,
+    stop_at_first: bool,
+) -> Vec<Result<Compensated, TargetError>> {
     let nominal = ErrorParams::zeros(robot.layout());
     let mut fast = Compensator::new(robot, model, opts);
-    let mut out: Vec<Compensated> = Vec::with_capacity(targets.len());
+    let mut out: Vec<Result<Compensated, TargetError>> = Vec::with_capacity(targets.len());
+    let mut seed: Option<Vec<f64>> = None;
     for (line, target) in targets {
-        let seed = out.last().map(|c| c.command.as_slice());
         let c = match target {
-            Target::Position(p) => fast.compensate(p, held, seed),
+            Target::Position(p) => fast.compensate(p, held, seed.as_deref()),
             Target::Joints(q) => {
                 let p = robot.position(q, &nominal);
                 let held_here: Vec<Option<f64>> =
@@ -176,10 +203,17 @@ pub fn compensate_targets(
         .map_err(|source| TargetError {
             line: *line,
             source,
-        })?;
+        });
+        let failed = c.is_err();
+        if let Ok(c) = &c {
+            seed = Some(c.command.clone());
+        }
         out.push(c);
+        if failed && stop_at_first {
+            break;
+        }
     }
-    Ok(out)
+    out
 }
 
 /// Compensation of many targets with one robot and error model, as [`compensate`] and

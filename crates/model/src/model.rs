@@ -331,8 +331,11 @@ impl ModelFile {
             path: path.to_path_buf(),
             source,
         })?;
+        // A byte-order mark (left by some Windows editors) is accepted, as the CSV and TOML
+        // readers accept one; serde_json would refuse it as an unexpected character.
+        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
         let value: serde_json::Value =
-            serde_json::from_str(&text).map_err(|e| json_error(path, &e))?;
+            serde_json::from_str(text).map_err(|e| json_error(path, &e))?;
         let format = value.get("format").and_then(|v| v.as_str()).unwrap_or("");
         if format != MODEL_FORMAT {
             return Err(ModelError::Format {
@@ -347,7 +350,7 @@ impl ModelFile {
                 reason: format!("model format version {version}; this rigcal reads version {MODEL_VERSION}: refit with this version"),
             });
         }
-        let file: ModelFile = serde_json::from_str(&text).map_err(|e| json_error(path, &e))?;
+        let file: ModelFile = serde_json::from_str(text).map_err(|e| json_error(path, &e))?;
         let rig_path = file
             .rig
             .path

@@ -54,6 +54,14 @@ pub enum RecordingError {
         /// The joint columns this rig expects.
         joints: String,
     },
+    /// A header names a column twice: which one holds the value is ambiguous.
+    #[error("{path}: line 1: column `{column}` appears more than once; keep one")]
+    DuplicateColumn {
+        /// The file.
+        path: PathBuf,
+        /// The repeated column.
+        column: String,
+    },
     /// A value is missing, not a number, or out of range.
     #[error("{path}: line {line}, column {column} (`{name}`): {reason}")]
     BadValue {
@@ -1076,6 +1084,12 @@ pub fn read_targets(
         .iter()
         .map(|h| h.trim().to_string())
         .collect();
+    if let Some(column) = duplicated(&headers) {
+        return Err(RecordingError::DuplicateColumn {
+            path: path.to_path_buf(),
+            column,
+        });
+    }
     let find = |n: &str| headers.iter().position(|h| h == n);
     let joint_cols: Vec<String> = joints
         .iter()
@@ -1123,6 +1137,15 @@ pub fn read_targets(
         out.push((line, target));
     }
     Ok(out)
+}
+
+/// The first header name that appears more than once, if any.
+fn duplicated(headers: &[String]) -> Option<String> {
+    headers
+        .iter()
+        .enumerate()
+        .find(|(k, h)| headers[..*k].contains(h))
+        .map(|(_, h)| h.clone())
 }
 
 /// The text of a joint-commands CSV: a header of joint columns (`q1_deg…`) and one row per

@@ -50,7 +50,7 @@ pub use options::SessionOptions;
 pub use plan::{
     estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
     z_window_mm, ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint,
-    RigTimeEstimate, TimeBreakdown,
+    RigTimeEstimate, TimeBreakdown, MAX_PLAN_POINTS,
 };
 pub use procedure::ContactProcedure;
 pub use progress::{Progress, ProgressSink};

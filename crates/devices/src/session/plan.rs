@@ -39,6 +39,11 @@ use rigcal_model::identification::random_poses;
 /// The region id of the drift-reference pose.
 pub const REFERENCE_REGION: &str = "ref";
 
+/// The most measurement points one plan may ask for: far beyond any session a rig can run
+/// (at seconds per point, a million points is weeks of rig time), and small enough that the
+/// planner's candidate draws stay within memory. Larger counts are refused before any work.
+pub const MAX_PLAN_POINTS: usize = 1_000_000;
+
 /// What went wrong planning or reading a plan.
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
@@ -71,6 +76,46 @@ pub enum PlanError {
         path: PathBuf,
         /// The cause.
         source: std::io::Error,
+    },
+    /// The number of points asked for is zero or above [`MAX_PLAN_POINTS`].
+    #[error("cannot plan {wanted} points: ask for 1 to {MAX_PLAN_POINTS} (split a larger campaign into several sessions)")]
+    PointCount {
+        /// Points asked for.
+        wanted: usize,
+    },
+    /// A plan file has no header line: its first line is data, which would be lost.
+    #[error("{path}: line 1 is not a header (`{first}`); add the header line `{expected}` above the points (as `rigcal plan` writes it)")]
+    MissingHeader {
+        /// The file.
+        path: PathBuf,
+        /// The first line as found.
+        first: String,
+        /// The header this rig's plans have.
+        expected: String,
+    },
+    /// A plan file's header lacks a column this rig's plans need.
+    #[error("{path}: line 1: missing column `{column}`; the header needs `{expected}` (as `rigcal plan` writes it for this rig)")]
+    MissingColumn {
+        /// The file.
+        path: PathBuf,
+        /// The missing column.
+        column: String,
+        /// The header this rig's plans have.
+        expected: String,
+    },
+    /// A plan file's header names a column twice: which one holds the value is ambiguous.
+    #[error("{path}: line 1: column `{column}` appears more than once; keep one")]
+    DuplicateColumn {
+        /// The file.
+        path: PathBuf,
+        /// The repeated column.
+        column: String,
+    },
+    /// A plan file has a header but no point: a session on it would measure nothing.
+    #[error("{path}: the plan has no points; write one with `rigcal plan --points N` (or pass `--points N` to `rigcal session`)")]
+    EmptyPlan {
+        /// The file.
+        path: PathBuf,
     },
     /// A plan file is malformed.
     #[error("{path}: line {line}: {reason}; expected columns point,region,q1_deg..qN_deg,table_x_mm,table_y_mm,table_z_mm")]
@@ -297,6 +342,11 @@ fn region_boxes(space: &DivisionSpace, n: usize) -> Vec<Bounds> {
 
 /// Plans a session on `rig`.
 pub fn plan(rig: &Rig, opts: &PlanOptions) -> Result<Plan, PlanError> {
+    if opts.points == 0 || opts.points > MAX_PLAN_POINTS {
+        return Err(PlanError::PointCount {
+            wanted: opts.points,
+        });
+    }
     let space =
         DivisionSpace::new(rig, Space::Joint).map_err(|e| PlanError::Space(e.to_string()))?;
     let boxes = region_boxes(&space, opts.regions);
@@ -977,17 +1027,10 @@ pub fn estimate(
 /// Writes `plan.csv`: `point,region,q1_deg..qN_deg,table_x_mm,table_y_mm,table_z_mm` (on a
 /// point-sensor rig `tip_x_mm,tip_y_mm,tip_z_mm`, the nominal marker position in the world).
 pub fn write_plan(path: &Path, rig: &Rig, points: &[PlannedPoint]) -> Result<(), PlanError> {
-    let target_columns = match rig.instrument {
-        Instrument::TablePanel(_) => ",table_x_mm,table_y_mm,table_z_mm\n",
-        _ => ",tip_x_mm,tip_y_mm,tip_z_mm\n",
-    };
     use std::fmt::Write;
     let joints = rig.chain.joints();
-    let mut s = String::from("point,region");
-    for (i, j) in joints.iter().enumerate() {
-        let _ = write!(s, ",{}", j.kind.column(i + 1));
-    }
-    s.push_str(target_columns);
+    let mut s = plan_columns(rig).join(",");
+    s.push('\n');
     for p in points {
         let _ = write!(s, "{},{}", p.point, p.region);
         for (spec, v) in joints.iter().zip(&p.q) {
@@ -1001,21 +1044,85 @@ pub fn write_plan(path: &Path, rig: &Rig, points: &[PlannedPoint]) -> Result<(),
     })
 }
 
+/// The columns of this rig's `plan.csv`, in the order [`write_plan`] writes them: `point`,
+/// `region`, the joint columns (`q1_deg`…), then the target (`table_x_mm`… on a table-panel
+/// rig, `tip_x_mm`… otherwise).
+fn plan_columns(rig: &Rig) -> Vec<String> {
+    let target = match rig.instrument {
+        Instrument::TablePanel(_) => ["table_x_mm", "table_y_mm", "table_z_mm"],
+        _ => ["tip_x_mm", "tip_y_mm", "tip_z_mm"],
+    };
+    let joints = rig.chain.joints().iter().enumerate();
+    ["point".to_string(), "region".to_string()]
+        .into_iter()
+        .chain(joints.map(|(i, j)| j.kind.column(i + 1)))
+        .chain(target.iter().map(|c| c.to_string()))
+        .collect()
+}
+
 /// Reads a `plan.csv` written by [`write_plan`] (or by hand, same columns).
+///
+/// Columns are found by their header names (in any order; unknown columns are ignored), so a
+/// file without a header, with a column twice, or without a needed column is refused rather
+/// than read wrongly; so is a plan with no point. A byte-order mark is accepted.
 pub fn read_plan(path: &Path, rig: &Rig) -> Result<Vec<PlannedPoint>, PlanError> {
     let text = std::fs::read_to_string(path).map_err(|source| PlanError::Io {
         path: path.to_path_buf(),
         source,
     })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    if text.trim().is_empty() {
+        return Err(PlanError::EmptyPlan {
+            path: path.to_path_buf(),
+        });
+    }
     let joints = rig.chain.joints();
-    let n = 2 + joints.len() + 3;
+    let columns = plan_columns(rig);
+    let expected = columns.join(",");
     let bad = |line: usize, reason: String| PlanError::Malformed {
         path: path.to_path_buf(),
         line,
         reason,
     };
+    let mut lines = text.lines().enumerate();
+    let header: Vec<&str> = match lines.next() {
+        Some((_, l)) => l.split(',').map(str::trim).collect(),
+        None => Vec::new(),
+    };
+    // A first line whose first field is a number is a point, not a header: reading on would
+    // lose it (or read the next point's values under wrong names).
+    let first = header.first().copied().unwrap_or("");
+    if !header.contains(&"point") && first.parse::<f64>().is_ok() {
+        return Err(PlanError::MissingHeader {
+            path: path.to_path_buf(),
+            first: header.join(","),
+            expected,
+        });
+    }
+    for (k, h) in header.iter().enumerate() {
+        if header[..k].contains(h) {
+            return Err(PlanError::DuplicateColumn {
+                path: path.to_path_buf(),
+                column: (*h).to_string(),
+            });
+        }
+    }
+    let at = columns
+        .iter()
+        .map(|c| {
+            header
+                .iter()
+                .position(|h| h == c)
+                .ok_or_else(|| PlanError::MissingColumn {
+                    path: path.to_path_buf(),
+                    column: c.clone(),
+                    expected: expected.clone(),
+                })
+        })
+        .collect::<Result<Vec<usize>, _>>()?;
+    let n = header.len();
     let mut out = Vec::new();
-    for (i, l) in text.lines().enumerate().skip(1) {
+    for (i, l) in lines {
         if l.trim().is_empty() {
             continue;
         }
@@ -1030,22 +1137,33 @@ pub fn read_plan(path: &Path, rig: &Rig) -> Result<Vec<PlannedPoint>, PlanError>
                 .ok_or_else(|| {
                     bad(
                         i + 1,
-                        format!("field {} (`{}`) is not a number", k + 1, f[k]),
+                        format!(
+                            "field {} (`{}`, column `{}`) is not a number",
+                            k + 1,
+                            f[k],
+                            header[k]
+                        ),
                     )
                 })
         };
-        let point = f[0]
+        let point = f[at[0]]
             .parse::<usize>()
-            .map_err(|_| bad(i + 1, format!("point `{}` is not a whole number", f[0])))?;
+            .map_err(|_| bad(i + 1, format!("point `{}` is not a whole number", f[at[0]])))?;
         let q = (0..joints.len())
-            .map(|j| num(2 + j).map(|v| joints[j].kind.from_file_units(v)))
+            .map(|j| num(at[2 + j]).map(|v| joints[j].kind.from_file_units(v)))
             .collect::<Result<Vec<_>, _>>()?;
-        let t = [num(n - 3)?, num(n - 2)?, num(n - 1)?];
+        let t0 = 2 + joints.len();
+        let t = [num(at[t0])?, num(at[t0 + 1])?, num(at[t0 + 2])?];
         out.push(PlannedPoint {
             point,
-            region: f[1].to_string(),
+            region: f[at[1]].to_string(),
             q,
             table_mm: t,
+        });
+    }
+    if out.is_empty() {
+        return Err(PlanError::EmptyPlan {
+            path: path.to_path_buf(),
         });
     }
     Ok(out)

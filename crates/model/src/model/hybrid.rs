@@ -101,7 +101,8 @@ fn directions(from: Option<&[f64]>, to: &[f64], last: &[i8]) -> Vec<i8> {
 }
 
 /// Compensates `targets` in order with the geometric `model` and the `effects`, the arm
-/// starting at `start` (its current joints, None when unknown).
+/// starting at `start` (its current joints, None when unknown). Stops at the first target that
+/// cannot be compensated.
 pub fn compensate_path(
     arm: &HybridArm<'_>,
     model: &dyn ErrorModel,
@@ -110,79 +111,143 @@ pub fn compensate_path(
     start: Option<&[f64]>,
     opts: &HybridOptions,
 ) -> Result<Vec<HybridCommand>, TargetError> {
+    path_in_order(arm, model, effects, targets, start, opts, true)
+        .into_iter()
+        .collect()
+}
+
+/// [`compensate_path`] past failures: one result per target, in order. A target that cannot be
+/// compensated is skipped: the arm does not move there, so the next target's approach
+/// directions and start are those of the last command compensated.
+pub fn compensate_path_each(
+    arm: &HybridArm<'_>,
+    model: &dyn ErrorModel,
+    effects: &[ModelEffect],
+    targets: &[(u64, Target)],
+    start: Option<&[f64]>,
+    opts: &HybridOptions,
+) -> Vec<Result<HybridCommand, TargetError>> {
+    path_in_order(arm, model, effects, targets, start, opts, false)
+}
+
+/// The path in order, the last result an error when `stop_at_first` and one failed.
+fn path_in_order(
+    arm: &HybridArm<'_>,
+    model: &dyn ErrorModel,
+    effects: &[ModelEffect],
+    targets: &[(u64, Target)],
+    start: Option<&[f64]>,
+    opts: &HybridOptions,
+    stop_at_first: bool,
+) -> Vec<Result<HybridCommand, TargetError>> {
+    let mut out: Vec<Result<HybridCommand, TargetError>> = Vec::with_capacity(targets.len());
+    let mut state = PathState {
+        prev: start.map(<[f64]>::to_vec),
+        last_dir: vec![0i8; arm.chain.joints().len()],
+        seed: None,
+    };
+    for (line, target) in targets {
+        let one =
+            path_target(arm, model, effects, target, &state, opts).map_err(|source| TargetError {
+                line: *line,
+                source,
+            });
+        if let Ok(c) = &one {
+            state = PathState {
+                prev: Some(c.command.clone()),
+                last_dir: c.direction.clone(),
+                seed: Some(c.actual.clone()),
+            };
+        }
+        let failed = one.is_err();
+        out.push(one);
+        if failed && stop_at_first {
+            break;
+        }
+    }
+    out
+}
+
+/// Where the arm is along the path: the last command compensated.
+struct PathState {
+    /// The last command (None before the first, when the start is unknown).
+    prev: Option<Vec<f64>>,
+    /// The approach direction each joint last moved in.
+    last_dir: Vec<i8>,
+    /// The joints the modelled arm last reached, the next inverse kinematics' start.
+    seed: Option<Vec<f64>>,
+}
+
+/// One target of the path, the arm at `state`.
+fn path_target(
+    arm: &HybridArm<'_>,
+    model: &dyn ErrorModel,
+    effects: &[ModelEffect],
+    target: &Target,
+    state: &PathState,
+    opts: &HybridOptions,
+) -> Result<HybridCommand, CompensationError> {
     let chain = arm.chain;
     let nominal_e = ErrorParams::zeros(chain.layout());
-    let mut out: Vec<HybridCommand> = Vec::with_capacity(targets.len());
-    let mut prev: Option<Vec<f64>> = start.map(<[f64]>::to_vec);
-    let mut last_dir = vec![0i8; chain.joints().len()];
-    for (line, target) in targets {
-        let fail = |source: CompensationError| TargetError {
-            line: *line,
-            source,
-        };
-        let seed = out.last().map(|c| c.actual.as_slice());
-        let geo = match target {
-            Target::Position(p) => compensate(chain, model, p, arm.held, seed, &opts.base),
-            Target::Joints(q) => {
-                let p = chain.position(q, &nominal_e);
-                let held_here: Vec<Option<f64>> =
-                    arm.held.iter().zip(q).map(|(h, v)| h.map(|_| *v)).collect();
-                compensate_from(chain, model, &p, &held_here, q.clone(), &opts.base)
+    let geo = match target {
+        Target::Position(p) => {
+            compensate(chain, model, p, arm.held, state.seed.as_deref(), &opts.base)
+        }
+        Target::Joints(q) => {
+            let p = chain.position(q, &nominal_e);
+            let held_here: Vec<Option<f64>> =
+                arm.held.iter().zip(q).map(|(h, v)| h.map(|_| *v)).collect();
+            compensate_from(chain, model, &p, &held_here, q.clone(), &opts.base)
+        }
+    }?;
+    let e = model.params_at(&geo.nominal);
+    let ctx = EffectContext {
+        chain,
+        e: &e,
+        masses: arm.masses,
+        payload_kg: opts.payload_kg,
+    };
+    let moving: Vec<bool> = arm.held.iter().map(Option::is_none).collect();
+    let mut cmd = geo.command.clone();
+    let mut via = None;
+    let mut dir = state.last_dir.clone();
+    for _ in 0..opts.iterations {
+        match opts.approach {
+            Approach::FromPath => dir = directions(state.prev.as_deref(), &cmd, &state.last_dir),
+            Approach::Consistent => {
+                // Near the lower limit the via stops at the limit: still below the target.
+                let v: Vec<f64> = cmd
+                    .iter()
+                    .zip(&moving)
+                    .zip(chain.joints())
+                    .map(|((c, &m), s)| {
+                        if m {
+                            (c - opts.via_offset).max(s.min)
+                        } else {
+                            *c
+                        }
+                    })
+                    .collect();
+                let after_via = directions(state.prev.as_deref(), &v, &state.last_dir);
+                dir = directions(Some(&v), &cmd, &after_via);
+                via = Some(v);
             }
         }
-        .map_err(fail)?;
-        let e = model.params_at(&geo.nominal);
-        let ctx = EffectContext {
-            chain,
-            e: &e,
-            masses: arm.masses,
-            payload_kg: opts.payload_kg,
-        };
-        let moving: Vec<bool> = arm.held.iter().map(Option::is_none).collect();
-        let mut cmd = geo.command.clone();
-        let mut via = None;
-        let mut dir = last_dir.clone();
-        for _ in 0..opts.iterations {
-            match opts.approach {
-                Approach::FromPath => dir = directions(prev.as_deref(), &cmd, &last_dir),
-                Approach::Consistent => {
-                    // Near the lower limit the via stops at the limit: still below the target.
-                    let v: Vec<f64> = cmd
-                        .iter()
-                        .zip(&moving)
-                        .zip(chain.joints())
-                        .map(|((c, &m), s)| {
-                            if m {
-                                (c - opts.via_offset).max(s.min)
-                            } else {
-                                *c
-                            }
-                        })
-                        .collect();
-                    let after_via = directions(prev.as_deref(), &v, &last_dir);
-                    dir = directions(Some(&v), &cmd, &after_via);
-                    via = Some(v);
-                }
-            }
-            let dq = joint_offsets(effects, &ctx, &cmd, &dir);
-            cmd = geo.command.iter().zip(&dq).map(|(a, d)| a - d).collect();
-        }
-        check_limits(chain, target, &cmd).map_err(fail)?;
-        if let Some(v) = &via {
-            check_limits(chain, target, v).map_err(fail)?;
-        }
-        last_dir = dir.clone();
-        prev = Some(cmd.clone());
-        out.push(HybridCommand {
-            via,
-            command: cmd,
-            actual: geo.command,
-            nominal: geo.nominal,
-            direction: dir,
-            residual_mm: geo.residual_mm,
-        });
+        let dq = joint_offsets(effects, &ctx, &cmd, &dir);
+        cmd = geo.command.iter().zip(&dq).map(|(a, d)| a - d).collect();
     }
-    Ok(out)
+    check_limits(chain, target, &cmd)?;
+    if let Some(v) = &via {
+        check_limits(chain, target, v)?;
+    }
+    Ok(HybridCommand {
+        via,
+        command: cmd,
+        actual: geo.command,
+        nominal: geo.nominal,
+        direction: dir,
+        residual_mm: geo.residual_mm,
+    })
 }
 
 fn check_limits(chain: &SerialChain, target: &Target, q: &[f64]) -> Result<(), CompensationError> {
