@@ -2,6 +2,7 @@
 //! missing, and an empty plan are refused with the file and the remedy named; a model file with
 //! a byte-order mark is read like the CSV and TOML files that accept one.
 
+use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::{read_targets, RecordingError};
 use rigcal_core::rig::Rig;
 use rigcal_devices::session::{
@@ -107,13 +108,17 @@ fn the_planner_refuses_a_zero_count() {
         points: 0,
         ..PlanOptions::default()
     };
-    let e = plan(&rig(), &opts).err().expect("0 points planned");
+    let Err(e) = plan(&rig(), &opts) else {
+        panic!("0 points planned")
+    };
     assert!(matches!(e, PlanError::PointCount { wanted: 0 }), "{e}");
     let opts = PlanOptions {
         points: MAX_PLAN_POINTS + 1,
         ..PlanOptions::default()
     };
-    let e = plan(&rig(), &opts).err().expect("too many points planned");
+    let Err(e) = plan(&rig(), &opts) else {
+        panic!("too many points planned")
+    };
     assert!(e.to_string().contains(&MAX_PLAN_POINTS.to_string()), "{e}");
 }
 
@@ -190,21 +195,34 @@ fn plan_columns_are_found_by_name_in_any_order() {
 fn a_plan_with_a_column_twice_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let (_, text) = written_plan(dir.path());
-    let dup: String = text
+    let (header, rows) = text.split_once('\n').unwrap();
+    assert!(header.contains(",q1_deg,q2_deg,"), "{header}");
+    // `q1_deg` in place of `q2_deg` (the same number of fields, so nothing else gives it away),
+    // and `q1_deg` added once more at the end.
+    let renamed = format!("{}\n{rows}", header.replacen(",q2_deg,", ",q1_deg,", 1));
+    let appended: String = text
         .lines()
         .enumerate()
         .map(|(i, l)| {
-            let first = l.split(',').nth(2).unwrap();
-            let extra = if i == 0 { "q1_deg" } else { first };
+            let extra = if i == 0 {
+                "q1_deg"
+            } else {
+                l.split(',').nth(2).unwrap()
+            };
             format!("{l},{extra}\n")
         })
         .collect();
     let path = dir.path().join("dup.csv");
-    std::fs::write(&path, dup).unwrap();
-    let e = read_plan(&path, &rig()).expect_err("a duplicated column was read");
-    let msg = e.to_string();
-    assert!(matches!(e, PlanError::DuplicateColumn { .. }), "{msg}");
-    assert!(msg.contains("dup.csv") && msg.contains("`q1_deg`"), "{msg}");
+    for content in [renamed, appended] {
+        std::fs::write(&path, &content).unwrap();
+        let e = read_plan(&path, &rig()).expect_err("a duplicated column was read");
+        let msg = e.to_string();
+        assert!(matches!(e, PlanError::DuplicateColumn { .. }), "{msg}");
+        assert!(
+            msg.contains("dup.csv") && msg.contains("`q1_deg` appears more"),
+            "{msg}"
+        );
+    }
 }
 
 #[test]

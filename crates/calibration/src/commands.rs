@@ -108,7 +108,7 @@ impl Commands {
 pub fn status_text(e: &CompensationError) -> String {
     match e {
         CompensationError::Ik(IkError::Unreachable { closest_mm, .. }) => {
-            format!("unreachable: the arm comes {closest_mm:.3} mm close at best")
+            format!("unreachable: {closest_mm:.3} mm away at closest")
         }
         CompensationError::Ik(IkError::JointLimit {
             joint,
