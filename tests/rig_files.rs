@@ -156,3 +156,39 @@ fn the_devices_section_is_validated_and_errors_name_its_key() {
     let bad = format!("{GOOD}\n[devices.panel]\nlatency = 3\n");
     assert!(err(&bad).contains("unknown field `latency`"));
 }
+
+#[test]
+fn a_bad_devices_section_is_refused_where_rigs_are_loaded_and_before_any_device_opens() {
+    use rigcal_devices::devices::{open_devices, Backend};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.toml");
+    let good = std::fs::read_to_string("rigs/rv-m2.toml").unwrap();
+    let bad = good.replacen("resolution_deg = 0.1", "resolution_deg = 0.3", 1);
+    assert_ne!(bad, good, "rv-m2.toml states the arm's resolution");
+    std::fs::write(&path, &bad).unwrap();
+    // Core loads the rig (it keeps [devices] as written); the checked loader refuses it.
+    let rig = Rig::load(&path).unwrap();
+    let e = rigcal_devices::config::load_rig(&path)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("bad.toml") && e.contains("devices.arm.resolution_deg"),
+        "{e}"
+    );
+    // The factory refuses it too rather than opening the arm with the default resolution.
+    let e = open_devices(&rig, Backend::RigFile)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("devices.arm.resolution_deg"), "{e}");
+    // And so does a command.
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_rigcal"))
+        .args(["plan", "--rig"])
+        .arg(&path)
+        .args(["--points", "10", "--out"])
+        .arg(dir.path().join("plan.csv"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("devices.arm.resolution_deg"), "{stderr}");
+}

@@ -67,7 +67,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
+    let rig = rigcal_devices::config::load_rig(&a.rig)?;
     let opts = CalibrationOptions {
         accuracy_mm: a.accuracy_mm,
         learner: a.learner.into(),

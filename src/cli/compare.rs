@@ -4,7 +4,6 @@
 
 use anyhow::Result;
 use rigcal_calibration::{self as calibration, CalibrationOptions, CompareFiles};
-use rigcal_core::rig::Rig;
 use std::path::PathBuf;
 
 /// Arguments of `rigcal compare`.
@@ -40,7 +39,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
+    let rig = rigcal_devices::config::load_rig(&a.rig)?;
     let files = CompareFiles {
         scenario: a.scenario.as_deref(),
         recording: a.recording.as_deref(),

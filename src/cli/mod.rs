@@ -62,7 +62,7 @@ pub(crate) struct RigArg {
 impl RigArg {
     /// Loads the rig file.
     pub fn load(&self) -> anyhow::Result<Rig> {
-        Ok(Rig::load(&self.rig)?)
+        Ok(rigcal_devices::config::load_rig(&self.rig)?)
     }
 }
 

@@ -68,7 +68,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> Result<()> {
-    let rig = Rig::load(&a.rig)?;
+    let rig = rigcal_devices::config::load_rig(&a.rig)?;
     let scenario = dry_run_scenario(&rig, &a.rig, a.sim.as_deref(), a.sim_seed)?;
     let setup = SessionSetup {
         dir: &a.out,

@@ -3,7 +3,6 @@
 //! line of stdout, then serves until killed.
 
 use anyhow::{bail, Result};
-use rigcal_core::rig::Rig;
 use rigcal_devices::devices::sim_device::{serve_on_pty, EmulatedDevice};
 use std::io::Write;
 use std::path::PathBuf;
@@ -38,7 +37,7 @@ pub fn run(a: Args) -> Result<()> {
     if !a.pty {
         bail!("only --pty is supported: the emulator is served on a pseudo-terminal");
     }
-    let rig = Rig::load(&a.rig)?;
+    let rig = rigcal_devices::config::load_rig(&a.rig)?;
     let served = serve_on_pty(&rig, a.device.into())?;
     let mut out = std::io::stdout().lock();
     writeln!(out, "{}", served.path)?;

@@ -131,6 +131,15 @@ fn transport(key: &str, t: &str, can: bool) -> Result<(), KeyError> {
     Ok(())
 }
 
+/// Loads a rig file and checks its `[devices]` section ([`DevicesConfig::of_rig`]): the rig
+/// as every command loads it, so a mistyped or out-of-range device setting is refused at load
+/// (with file, key and line) rather than replaced by its default later.
+pub fn load_rig(path: &std::path::Path) -> Result<Rig, RigError> {
+    let rig = Rig::load(path)?;
+    DevicesConfig::of_rig(&rig)?;
+    Ok(rig)
+}
+
 impl DevicesConfig {
     /// The rig file's `[devices]` section, read and checked; the defaults where the rig file
     /// has none. Errors name the file and the key (`devices.arm.resolution_deg`), and a
@@ -157,9 +166,10 @@ impl DevicesConfig {
         Ok(cfg)
     }
 
-    /// The section as [`Self::of_rig`] reads it, for code that runs once the rig is open (the
-    /// entry points — the factory, the planner, the session — call `of_rig` first and stop on
-    /// its errors); `None` when the rig file has no `[devices]`.
+    /// The section as [`Self::of_rig`] reads it, for code that runs once the rig is open: rigs
+    /// are loaded through [`load_rig`] and the factory checks the section with `of_rig` before
+    /// it opens a device, so past those the section is known to read; `None` when the rig file
+    /// has no `[devices]`.
     pub fn read_opt(rig: &Rig) -> Option<DevicesConfig> {
         let section = rig.devices.as_ref()?;
         Some(

@@ -408,6 +408,12 @@ fn is_sim(t: &str) -> bool {
 
 /// Opens the rig's devices: the arm and its instrument (table and panel, or a point sensor).
 pub fn open_devices(rig: &Rig, backend: Backend) -> Result<RigDevices, DeviceError> {
+    // The one check of `[devices]` before any device opens: the drivers below read it without
+    // checking again.
+    crate::config::DevicesConfig::of_rig(rig).map_err(|e| DeviceError::Config {
+        key: "devices".into(),
+        reason: e.to_string(),
+    })?;
     match &rig.instrument {
         Instrument::TablePanel(_) => open_table_rig(rig, backend),
         Instrument::Ideal | Instrument::Tracker => open_sensor_rig(rig, backend),

@@ -140,10 +140,11 @@ impl Scenario {
             .parent()
             .unwrap_or_else(|| Path::new(""))
             .join(&raw.rig);
-        let rig = Rig::load(&rig_path).map_err(|source| ScenarioError::Rig {
-            path: path.to_path_buf(),
-            source,
-        })?;
+        let rig =
+            rigcal_devices::config::load_rig(&rig_path).map_err(|source| ScenarioError::Rig {
+                path: path.to_path_buf(),
+                source,
+            })?;
         let invalid = |e: EntryError| ScenarioError::Invalid {
             path: path.to_path_buf(),
             key: e.key,
