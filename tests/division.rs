@@ -444,3 +444,127 @@ fn learner_ceps_keep_what_a_region_sees_and_drop_what_it_cannot() {
     assert!(checked >= 10, "{checked} regions");
     assert!(shrunk_a_lot >= checked / 4, "{shrunk_a_lot} of {checked}");
 }
+
+/// The acceptance margin this suite holds an accepted region to (docs/seeds.md): along the
+/// Fig. 6 path, inside every region the division accepted, the regions' error stays within
+/// the demand plus this fraction of it.
+const ACCEPTANCE_MARGIN: f64 = 0.1;
+
+/// Seeds 8, 10 and 11 of `sim/paper-fig6.toml` fooled the paper's acceptance (every test point
+/// below the demand): at seed 8 a half workspace holding the whole Fig. 6 path (region r1)
+/// passed its 27 test points at 0.096 mm, and the path then reached 0.145 mm inside it (this
+/// test fails so with `confidence_z: 0.0`, the old rule). The division at the paper's settings
+/// (0.1 mm, 20 per region, cap 110; no learner: the regions' own CEPs), then every path point
+/// compensated with its region's CEPs: no region accepted on its test may hold a path point
+/// above the demand by more than [`ACCEPTANCE_MARGIN`]. (The full Fig. 6 division: about half
+/// a second per seed in release.)
+#[test]
+fn no_accepted_region_holds_a_path_error_beyond_the_demand_and_its_margin() {
+    use rigcal_sim::world::Scenario;
+
+    let rig = Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
+    let sc = Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    for seed in [8, 10, 11] {
+        accepted_regions_hold_the_path(&rig, &sc, seed, Default::default());
+    }
+}
+
+/// Sequential testing with earlier tests as evidence (`TestPlan`, section 7's plan): a region
+/// stops its test at the first stage that misses the demand, and the test measurements of the
+/// regions enclosing it count as its own (predicted by its CEPs, never part of a fit). On seed
+/// 8's Fig. 6 division it measures well under two thirds of the paper's test points, and no
+/// region it accepts holds a path point beyond the demand and its margin.
+#[test]
+fn sequential_tests_on_earlier_evidence_measure_fewer_points_and_hold_the_path() {
+    use rigcal_model::division::TestPlan;
+    use rigcal_sim::world::Scenario;
+
+    let rig = Rig::load(Path::new("rigs/rv-m2-ideal.toml")).unwrap();
+    let sc = Scenario::load(Path::new("sim/paper-fig6.toml"), None).unwrap();
+    let paper = accepted_regions_hold_the_path(&rig, &sc, 8, TestPlan::default());
+    let plan = TestPlan {
+        first_stage: 9,
+        reuse: true,
+        ..TestPlan::default()
+    };
+    let sequential = accepted_regions_hold_the_path(&rig, &sc, 8, plan);
+    assert!(
+        (sequential as f64) < 0.65 * paper as f64,
+        "{sequential} test measurements against {paper}"
+    );
+}
+
+/// The division of `seed` at the paper's settings with `test_plan`, checked along the Fig. 6
+/// path: its test measurements.
+fn accepted_regions_hold_the_path(
+    rig: &Rig,
+    sc: &rigcal_sim::world::Scenario,
+    seed: u64,
+    test_plan: rigcal_model::division::TestPlan,
+) -> usize {
+    use rigcal_calibration::{calibrate, CalibrationOptions, Source};
+    use rigcal_model::division::{DivisionSpace, Space};
+    use rigcal_model::learners::LearnerKind;
+    use rigcal_model::model::ModelBody;
+
+    let demand = 0.1;
+    let opts = CalibrationOptions {
+        space: Space::Joint,
+        accuracy_mm: demand,
+        per_region: 20,
+        max_regions: Some(110),
+        learner: LearnerKind::None,
+        seed,
+        test_plan,
+        ..Default::default()
+    };
+    let c = calibrate(rig, Source::Scenario(sc), &opts).unwrap();
+    let tests = match &c.figures {
+        rigcal_calibration::Figures::Division(d) => d.test_measurements,
+        rigcal_calibration::Figures::Neural(_) => panic!("not a division"),
+    };
+    let ModelBody::Variable { tree, .. } = c.model.model else {
+        panic!("not a division");
+    };
+    let layout = rig.chain.layout();
+    let basis: Vec<usize> = tree
+        .basis
+        .iter()
+        .map(|n| layout.find(n).and_then(|id| layout.index_of(id)).unwrap())
+        .collect();
+    let space = DivisionSpace::new(rig, tree.space).unwrap();
+    let model = RegionModel::new(tree.clone(), space.clone(), basis, layout.len());
+    let world = sc.world();
+    let nominal = ErrorParams::zeros(layout);
+    let mut start: Option<Vec<f64>> = None;
+    let mut worst: Vec<(String, f64, f64)> = Vec::new();
+    for q in fig6_path() {
+        let target = rig.chain.position(&q, &nominal);
+        let cmd = compensate(
+            &rig.chain,
+            &model,
+            &target,
+            rig.held(),
+            start.as_deref(),
+            &CompensationOptions::default(),
+        )
+        .unwrap();
+        start = Some(cmd.command.clone());
+        let error = (world.true_position(&cmd.command) - target).norm();
+        let leaf = tree.root.leaf_at(&space.coords(&q), &tree.full);
+        let accepted = leaf.note.is_none()
+            && leaf
+                .test
+                .is_some_and(|t| t.verdict_mm() <= demand && t.max_mm <= demand);
+        if accepted && error > demand * (1.0 + ACCEPTANCE_MARGIN) {
+            let test = leaf.test.map_or(f64::NAN, |t| t.max_mm);
+            worst.push((leaf.id.clone(), test, error));
+        }
+    }
+    assert!(
+        worst.is_empty(),
+        "seed {seed}: accepted regions (id, largest test error, path error, mm) beyond {} mm: {worst:?}",
+        demand * (1.0 + ACCEPTANCE_MARGIN)
+    );
+    tests
+}

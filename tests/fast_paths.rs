@@ -382,6 +382,7 @@ mod reference {
             kappa,
             singular_values,
             poses: poses.len(),
+            undetermined: Vec::new(),
         }
     }
 
@@ -495,6 +496,7 @@ mod reference {
             sigma0_mm: s2.sqrt(),
             iterations,
             residuals,
+            undetermined: Vec::new(),
         }
     }
 }

@@ -132,7 +132,8 @@ fn written_plan(dir: &Path) -> (Vec<PlannedPoint>, String) {
         .map(|k| PlannedPoint {
             point: k,
             region: format!("r{k}"),
-            q: (0..dof).map(|j| 0.01 * (k * 10 + j) as f64).collect(),
+            // Distinct values within every joint's limits (J3's are [-120°, 0°]).
+            q: (0..dof).map(|j| -0.01 * (k * 10 + j) as f64).collect(),
             table_mm: [k as f64, 2.0 * k as f64, 3.0 * k as f64],
         })
         .collect();
@@ -189,6 +190,26 @@ fn plan_columns_are_found_by_name_in_any_order() {
     std::fs::write(&path, lines.join("\n") + "\n").unwrap();
     let read = read_plan(&path, &rig()).unwrap();
     assert_eq!(read[0].table_mm, [2.0, 1.0, 3.0]);
+}
+
+#[test]
+fn a_plan_point_outside_the_joint_limits_is_refused_with_its_line_and_joint() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, text) = written_plan(dir.path());
+    // J3 (limits -120°..0°) at +20° on the second point: a plan made for another rig, or edited.
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let k = header.iter().position(|h| *h == "q3_deg").unwrap();
+    let mut f: Vec<String> = lines[2].split(',').map(String::from).collect();
+    f[k] = "20.0".into();
+    lines[2] = f.join(",");
+    let path = dir.path().join("outside.csv");
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    let msg = read_plan(&path, &rig()).expect_err("accepted").to_string();
+    assert!(
+        msg.contains("line 3") && msg.contains("J3") && msg.contains("outside its limits"),
+        "{msg}"
+    );
 }
 
 #[test]

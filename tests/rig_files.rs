@@ -192,3 +192,42 @@ fn a_bad_devices_section_is_refused_where_rigs_are_loaded_and_before_any_device_
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains("devices.arm.resolution_deg"), "{stderr}");
 }
+
+#[test]
+fn a_tool_matrix_turned_half_a_turn_is_read_exactly() {
+    // Rz(π) and Rx(π): a frame turned 180° (nalgebra's iterative `from_matrix` stalled short of
+    // it, so such a tool came out turned by a few thousandths of a degree too little).
+    for (m, name) in [
+        ("[[-1,0,0,5],[0,-1,0,6],[0,0,1,7],[0,0,0,1]]", "Rz(π)"),
+        ("[[1,0,0,5],[0,-1,0,6],[0,0,-1,7],[0,0,0,1]]", "Rx(π)"),
+    ] {
+        let text = GOOD.replace(
+            "tool = { a_mm = 10 }",
+            &format!("tool = {{ matrix = {m} }}"),
+        );
+        let rig = Rig::parse(&text, None).unwrap();
+        let zero = rigcal_core::kinematics::ErrorParams::zeros(rig.chain.layout());
+        let q = [0.3, 20.0];
+        // A point 1 m out along the tool's x axis and the tool origin, against the same chain
+        // with the tool built from the exact rotation.
+        let tip = rig.chain.tool_pose(&q, &zero);
+        let exact = GOOD.replace("tool = { a_mm = 10 }", "tool = { a_mm = 0 }");
+        let flange = Rig::parse(&exact, None).unwrap().chain.tool_pose(&q, &zero);
+        let rot = if name == "Rz(π)" {
+            nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::z_axis(), std::f64::consts::PI)
+        } else {
+            nalgebra::Rotation3::from_axis_angle(&nalgebra::Vector3::x_axis(), std::f64::consts::PI)
+        };
+        let tool = nalgebra::Isometry3::from_parts(
+            nalgebra::Translation3::new(5.0, 6.0, 7.0),
+            nalgebra::UnitQuaternion::from_rotation_matrix(&rot),
+        );
+        let want = flange * tool;
+        let far = nalgebra::Point3::new(1000.0, 0.0, 0.0);
+        let d = (tip * far - want * far).norm();
+        assert!(
+            d < 1e-9,
+            "{name}: the tool's x axis is off by {d:e} mm at 1 m"
+        );
+    }
+}

@@ -224,7 +224,7 @@ fn a_resume_with_another_procedure_is_refused() {
     let again = run(&["--resume"]);
     let err = String::from_utf8_lossy(&again.stderr);
     assert!(
-        !again.status.success() && err.contains("--procedure baseline"),
+        !again.status.success() && err.contains("--procedure: was baseline, now rigcal"),
         "{err}"
     );
     let same = run(&["--resume", "--procedure", "baseline"]);

@@ -316,6 +316,7 @@ fn slcan_bus_over_pty_opens_sends_and_receives() {
     assert_eq!(
         seen,
         vec![
+            SlcanMessage::Close,
             SlcanMessage::SetBitrate(Bitrate::K500),
             SlcanMessage::Open,
             SlcanMessage::frame(f),

@@ -4,13 +4,14 @@
 //! [`rigcal_calibration`].
 
 use super::options::{three_numbers, CalibrationArgs, LearnerArg};
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use rigcal_calibration::{
     self as calibration, Calibrated, CalibrationError, CalibrationOptions, PlanningFiles,
     PlanningSession, Source,
 };
 use rigcal_core::rig::Rig;
+use rigcal_devices::session::{SessionLock, StopRequest};
 use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal calibrate` (one field per flag or flag group: more than 12).
@@ -150,7 +151,16 @@ fn through_session(
         rig: &a.rig,
         sim: a.sim.as_deref(),
     };
-    let session = PlanningSession::open(rig, files, dir, opts, a.resume)?;
+    // The directory is owned for the whole run, as `rigcal session` owns its own: a second
+    // writer (a resume started twice, say) is refused with who holds it.
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating the session directory {}", dir.display()))?;
+    let lock = SessionLock::acquire(dir)?;
+    if let Some(stale) = lock.stale_holder() {
+        eprintln!("note: the run that held {} before ({stale}) did not end normally; it is gone, the directory is taken over", dir.display());
+    }
+    let stop = StopRequest::on_signals().context("listening for Ctrl-C and SIGTERM")?;
+    let session = PlanningSession::open(rig, files, dir, opts, a.resume, stop)?;
     if a.resume {
         let n = session.replayed();
         eprintln!(
@@ -160,5 +170,6 @@ fn through_session(
     }
     let (calibrated, text) = with_bar(opts, |p| session.calibrate(rig, opts, p))?;
     print!("{text}");
+    drop(lock);
     Ok(calibrated)
 }

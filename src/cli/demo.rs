@@ -2,10 +2,11 @@
 //! ([`rigcal_paper::demo`], which says what it runs): the flags, the progress and the printing.
 
 use super::options::TrainingArg;
-use anyhow::Result;
-use rigcal_paper::demo::{DemoEvent, DemoOptions};
+use anyhow::{Context, Result};
+use rigcal_paper::demo::{DemoEvent, DemoOptions, PathSet};
 use rigcal_paper::preset::SEED_000;
 use rigcal_paper::sec7::Sec7Stage;
+use rigcal_paper::seeds::{SweepEvent, SweepOptions, SweepPart};
 use std::path::PathBuf;
 
 /// Arguments of `rigcal demo`.
@@ -36,12 +37,86 @@ pub struct Args {
     /// What every FCMAC is trained to reproduce (`rigcal calibrate --fcmac-training`).
     #[arg(long, value_enum, default_value_t = TrainingArg::Positions)]
     fcmac_training: TrainingArg,
+    /// Accept a division's region when the upper confidence bound of its largest error, this
+    /// many standard deviations above its test points' Gaussian-process fit, meets the demand
+    /// (docs/seeds.md); 0: on the test points' maximum, the paper's rule [default: 1]
+    #[arg(long, value_name = "Z")]
+    confidence_z: Option<f64>,
+    /// Run section 6 alone at each of these seeds (`1-20`, or `3,8,10`) and print, per claim,
+    /// the pass rate, the median and the worst seed (docs/seeds.md); writes `seeds.md` and
+    /// `seeds.csv` to --out (default out/seeds then).
+    #[arg(long, value_name = "SEEDS", value_parser = parse_seeds)]
+    seeds: Option<SeedList>,
+    /// With --seeds: worker threads, one seed each at a time.
+    #[arg(long, default_value_t = 2, requires = "seeds")]
+    threads: usize,
+    /// With --seeds: evaluate along the tuning paths (docs/seeds.md), which no reported figure
+    /// uses, instead of the paper's.
+    #[arg(long, requires = "seeds")]
+    tuning_paths: bool,
+    /// With --seeds: run section 7 (the rig experiment through `MP`, without the `MJ` pass)
+    /// at each seed instead of section 6; out/seeds-rig by default.
+    #[arg(long, requires = "seeds")]
+    rig: bool,
+}
+
+/// The seeds of `--seeds`, as one value.
+#[derive(Debug, Clone)]
+struct SeedList(Vec<u64>);
+
+/// `A-B` (inclusive) or a comma-separated list.
+fn parse_seeds(s: &str) -> Result<SeedList, String> {
+    let bad = |e: std::num::ParseIntError| format!("{s}: {e} (give `1-20` or `3,8,10`)");
+    let seeds: Vec<u64> = match s.split_once('-') {
+        Some((a, b)) => {
+            let (a, b) = (
+                a.trim().parse().map_err(bad)?,
+                b.trim().parse().map_err(bad)?,
+            );
+            (a..=b).collect()
+        }
+        None => s
+            .split(',')
+            .map(|x| x.trim().parse().map_err(bad))
+            .collect::<Result<_, _>>()?,
+    };
+    if seeds.is_empty() {
+        return Err(format!("{s}: no seed (give `1-20` or `3,8,10`)"));
+    }
+    Ok(SeedList(seeds))
 }
 
 pub fn run(a: Args) -> Result<()> {
     let mut preset = SEED_000;
     preset.accuracy_mm = a.accuracy_mm;
     preset.section7.accuracy_mm = a.rig_accuracy_mm;
+    if let Some(SeedList(seeds)) = a.seeds {
+        let out = if a.out == std::path::Path::new("out/demo") {
+            let out = rigcal_paper::seeds::default_out();
+            if a.rig {
+                out.with_file_name("seeds-rig")
+            } else {
+                out
+            }
+        } else {
+            a.out
+        };
+        let demo = DemoOptions {
+            out,
+            preset,
+            path_points: a.path_points,
+            seed: 1,
+            learner_tolerance: a.learner_tolerance,
+            fcmac_training: a.fcmac_training.into(),
+            confidence_z: a.confidence_z,
+        };
+        let part = if a.rig {
+            SweepPart::Section7
+        } else {
+            SweepPart::Section6
+        };
+        return sweep(demo, seeds, a.threads, a.tuning_paths, part);
+    }
     let opts = DemoOptions {
         out: a.out,
         preset,
@@ -49,6 +124,7 @@ pub fn run(a: Args) -> Result<()> {
         seed: a.seed,
         learner_tolerance: a.learner_tolerance,
         fcmac_training: a.fcmac_training.into(),
+        confidence_z: a.confidence_z,
     };
     rigcal_paper::demo::run(&opts, &mut |event| match event {
         DemoEvent::Text(text) => print!("{text}"),
@@ -60,5 +136,62 @@ pub fn run(a: Args) -> Result<()> {
             eprintln!("measuring the path through the {cp} command path")
         }
     })?;
+    Ok(())
+}
+
+/// `rigcal demo --seeds`: the sweep, a line per finished seed, then the table (also written to
+/// `seeds.md` and `seeds.csv`).
+fn sweep(
+    demo: DemoOptions,
+    seeds: Vec<u64>,
+    threads: usize,
+    tuning: bool,
+    part: SweepPart,
+) -> Result<()> {
+    let opts = SweepOptions {
+        paths: if tuning {
+            PathSet::Tuning
+        } else {
+            PathSet::Paper
+        },
+        demo,
+        seeds,
+        threads,
+        part,
+    };
+    let out = opts.demo.out.clone();
+    eprintln!(
+        "{} at {} seeds on {} thread(s), into {}",
+        match part {
+            SweepPart::Section6 => "section 6",
+            SweepPart::Section7 => "section 7",
+        },
+        opts.seeds.len(),
+        opts.threads,
+        out.display()
+    );
+    let started = std::time::Instant::now();
+    let table = rigcal_paper::seeds::sweep(&opts, &|event| match event {
+        SweepEvent::Finished {
+            seed,
+            done,
+            total,
+            wall_s,
+        } => {
+            let elapsed = started.elapsed().as_secs_f64();
+            let left = elapsed / done as f64 * (total - done) as f64;
+            eprintln!(
+                "seed {seed} done in {wall_s:.0} s ({done}/{total}; {elapsed:.0} s so far, about {left:.0} s left)"
+            );
+        }
+    })?;
+    let text = table.text();
+    print!("{text}");
+    std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+    for (name, body) in [("seeds.md", text), ("seeds.csv", table.csv())] {
+        let file = out.join(name);
+        std::fs::write(&file, body).with_context(|| format!("writing {}", file.display()))?;
+    }
+    eprintln!("table written to {}", out.join("seeds.md").display());
     Ok(())
 }

@@ -129,6 +129,8 @@ fn write_model(
     out: &Path,
     effects: &[ModelEffect],
 ) -> Result<()> {
+    // Every path to a model file (one recording, sessions, effects) passes the fit's check.
+    rigcal_model::identification::check_fit(rig, &id.chain, &id.fit)?;
     conventional::model_file(rig, id, recording, effects).save(out)?;
     println!("model written to {}", out.display());
     Ok(())

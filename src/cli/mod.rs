@@ -134,7 +134,7 @@ enum Command {
     Plan(plan::Args),
     /// Run (or resume) an automatic measurement session on the rig, or a dry run on emulators.
     Session(session::Args),
-    /// Serve one device's emulator on a pseudo-terminal (prints the port path).
+    /// Serve emulators on pseudo-terminals: one device, or the whole rig on one world (`rig`).
     SimDevice(sim_device::Args),
     /// Conventional calibration, the variable D-H model with FCMAC and a neural network on the
     /// same recording and validation set, side by side.

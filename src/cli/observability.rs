@@ -10,9 +10,9 @@ use rigcal_calibration::conventional::observability_text;
 pub struct Args {
     #[command(flatten)]
     rig: RigArg,
-    /// Number of random poses (uniform within the joint limits) to analyse over.
-    #[arg(long, default_value_t = 100)]
-    poses: usize,
+    /// Number of random poses (uniform within the joint limits) to analyse over, 2 to 100000.
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(2..=MAX_POSES))]
+    poses: u64,
     /// Seed of the random poses.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -21,12 +21,13 @@ pub struct Args {
     all_joints: bool,
 }
 
+/// Most poses analysed: the Jacobian holds 3 rows per pose, refused up front rather than
+/// filling memory.
+const MAX_POSES: u64 = 100_000;
+
 pub fn run(a: Args) -> Result<()> {
     let rig = a.rig.load()?;
-    anyhow::ensure!(a.poses >= 2, "--poses must be at least 2");
-    print!(
-        "{}",
-        observability_text(&rig, a.poses, a.seed, a.all_joints)
-    );
+    let poses = usize::try_from(a.poses)?;
+    print!("{}", observability_text(&rig, poses, a.seed, a.all_joints));
     Ok(())
 }

@@ -2,7 +2,7 @@
 //! ([`rigcal_calibration::convert::rig_from_urdf`]).
 
 use anyhow::{Context, Result};
-use rigcal_calibration::convert::rig_from_urdf;
+use rigcal_calibration::convert::{rig_from_urdf, FK_CHECK_SAMPLES};
 use rigcal_core::kinematics::Robot;
 use std::path::PathBuf;
 
@@ -41,12 +41,14 @@ pub fn run(a: Args) -> Result<()> {
         out,
     } = a.command;
     let out = &out.out;
-    let (toml, rig) = rig_from_urdf(&urdf, &base, &tip, out)?;
-    std::fs::write(out, &toml).with_context(|| format!("cannot write {}", out.display()))?;
+    let converted = rig_from_urdf(&urdf, &base, &tip, out)?;
+    std::fs::write(out, &converted.toml)
+        .with_context(|| format!("cannot write {}", out.display()))?;
     println!(
-        "{} joints from `{base}` to `{tip}` → {}",
-        rig.chain.dof(),
-        out.display()
+        "{} joints from `{base}` to `{tip}` → {} (forward kinematics checked against the URDF at {FK_CHECK_SAMPLES} joint vectors: largest difference {:.1e} mm)",
+        converted.rig.chain.dof(),
+        out.display(),
+        converted.deviation_mm
     );
     Ok(())
 }

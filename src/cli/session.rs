@@ -1,6 +1,7 @@
 //! `rigcal session`: run an automatic measurement session on the rig, or a dry run through the
 //! same drivers against emulators of a scenario's world (`--sim`), and resume one (`--resume`);
-//! set up by [`SessionSetup`] (the session directory, its `plan.csv`, the estimate).
+//! set up by [`SessionSetup`] (the session directory locked and a resume checked before any
+//! device is opened, its `plan.csv`, the estimate).
 
 use anyhow::{bail, Result};
 use rigcal_calibration::dry_run_scenario;
@@ -70,11 +71,12 @@ pub struct Args {
 pub fn run(a: Args) -> Result<()> {
     let rig = rigcal_devices::config::load_rig(&a.rig)?;
     let scenario = dry_run_scenario(&rig, &a.rig, a.sim.as_deref(), a.sim_seed)?;
-    let setup = SessionSetup {
+    let mut setup = SessionSetup {
         dir: &a.out,
         resume: a.resume,
         rig_file: &a.rig,
         scenario_file: a.sim.as_deref(),
+        scenario_rig_file: scenario.as_ref().map(|s| s.rig_path.as_path()),
         scenario_seed: scenario.as_ref().map(|s| s.seed),
         seed: a.seed.or(scenario.as_ref().map(|s| s.seed)).unwrap_or(1),
         procedure: a.procedure,
@@ -82,7 +84,11 @@ pub fn run(a: Args) -> Result<()> {
         registration_from: a.registration_from.as_deref(),
         fsync: a.fsync,
     };
-    setup.prepare_dir()?;
+    // Held until the session has ended: no other run writes this directory meanwhile.
+    let owned = setup.take_dir(&rig)?;
+    for note in &owned.notes {
+        eprintln!("note: {note}");
+    }
     let points = session_plan(&a, &setup, &rig)?;
     let est = setup.estimate(&rig, &points);
     println!("{}", est.text());
@@ -94,11 +100,13 @@ pub fn run(a: Args) -> Result<()> {
     };
     let opened = open_rig(&rig, scenario.as_ref(), clock)?;
     let virtual_clock = opened.devices.clock.is_virtual();
-    let opts = setup.options(&rig, points.len(), virtual_clock)?;
+    let mut opts = setup.options(&rig, points.len(), virtual_clock)?;
+    opts.stop = rigcal_devices::session::StopRequest::on_signals()?; // SIGINT/SIGTERM: a safe stop
     let progress = super::progress::session_progress(points.len());
     let report = run_session(&rig, opened, &points, opts, &progress)?;
     print!("{}", report.text(&a.out, virtual_clock));
     println!("{}", report.beside_estimate_text(est.total_s));
+    drop(owned);
     Ok(())
 }
 

@@ -88,6 +88,13 @@ fn parameter_table(layout: &ParamLayout, fit: &FitResult) -> String {
             id.kind.unit()
         );
     }
+    s.push_str(
+        &rigcal_model::identification::identifiability::undetermined_text(
+            layout,
+            &fit.undetermined,
+            |i| layout.symbol(layout.ids()[i]),
+        ),
+    );
     s
 }
 

@@ -13,7 +13,7 @@ use rigcal_core::rig::Rig;
 use rigcal_devices::devices::{CommandPath, SimClock};
 use rigcal_devices::session::{
     recorded_requests, RecordedRequest, Session, SessionError, SessionMeasurer, SessionOptions,
-    SessionReport,
+    SessionReport, StopRequest,
 };
 use rigcal_model::division::DivisionError;
 use rigcal_sim::world::Scenario;
@@ -124,12 +124,30 @@ pub fn open_session<'r>(
     resume: bool,
     fallbacks: &Arc<AtomicUsize>,
 ) -> Result<Session<'r>, CalibrationError> {
+    let never = StopRequest::new();
+    open_session_stoppable(rig, files, scenario, dir, opts, resume, fallbacks, never)
+}
+
+/// [`open_session`], stopping safely (drives halted, the journal at the last finished point,
+/// resumable) when `stop` is raised — by SIGINT or SIGTERM from `rigcal calibrate --session`.
+#[allow(clippy::too_many_arguments)]
+pub fn open_session_stoppable<'r>(
+    rig: &'r Rig,
+    files: PlanningFiles<'_>,
+    scenario: Option<&Scenario>,
+    dir: &Path,
+    opts: &CalibrationOptions,
+    resume: bool,
+    fallbacks: &Arc<AtomicUsize>,
+    stop: StopRequest,
+) -> Result<Session<'r>, CalibrationError> {
     let opened = rigcal_sim::emulation::open_rig(rig, scenario, SimClock::Virtual)?
         .on_command_path(super::rig_check::command_path(rig), fallbacks);
     let mut so = SessionOptions::new(dir);
     so.seed = opts.seed;
     so.resume = resume;
     so.fsync = !opened.devices.clock.is_virtual();
+    so.stop = stop;
     so.info = SessionInfo {
         rig: Some(files.rig.display().to_string()),
         scenario: files.sim.map(|p| p.display().to_string()),
@@ -260,13 +278,14 @@ impl<'r> PlanningSession<'r> {
     /// Opens (or, with `resume`, resumes after refusing other options) the planning-mode
     /// session in `dir`, on emulators of the `files.sim` scenario's world (checked against the
     /// rig) or on the rig's devices. A resumed session's finished points are read for the
-    /// division to replay.
+    /// division to replay. Raising `stop` halts it safely, resumable.
     pub fn open(
         rig: &'r Rig,
         files: PlanningFiles<'_>,
         dir: &Path,
         opts: &CalibrationOptions,
         resume: bool,
+        stop: StopRequest,
     ) -> Result<Self, CalibrationError> {
         if opts.is_neural() {
             return Err(CalibrationError::NeuralNeedsData);
@@ -276,7 +295,16 @@ impl<'r> PlanningSession<'r> {
         }
         let fallbacks = Arc::new(AtomicUsize::new(0));
         let scenario = super::dry_run_scenario(rig, files.rig, files.sim, None)?;
-        let session = open_session(rig, files, scenario.as_ref(), dir, opts, resume, &fallbacks)?;
+        let session = open_session_stoppable(
+            rig,
+            files,
+            scenario.as_ref(),
+            dir,
+            opts,
+            resume,
+            &fallbacks,
+            stop,
+        )?;
         let recorded = if resume {
             resumed_requests(rig, dir, session.points_done())?
         } else {

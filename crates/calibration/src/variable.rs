@@ -71,6 +71,8 @@ pub(super) fn calibrate(
         seed: opts.seed,
         unmeasurable_halves: opts.unmeasurable_halves,
         learner_tolerance: opts.learner_tolerance_in_use(),
+        confidence_z: opts.confidence_z,
+        test_plan: opts.test_plan,
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();
@@ -222,7 +224,7 @@ fn figures(r: &DivisionReport, opts: &CalibrationOptions, mode: &str) -> Divisio
     let leaves = r.tree.root.leaves();
     let passing = leaves
         .iter()
-        .filter(|l| l.test.is_some_and(|t| t.max_mm <= opts.accuracy_mm))
+        .filter(|l| l.test.is_some_and(|t| t.verdict_mm() <= opts.accuracy_mm))
         .count();
     let mut kappas: Vec<f64> = leaves
         .iter()

@@ -219,6 +219,50 @@ pub struct ModelFile {
     /// The covariance of the fitted (conventional) parameters, in file units, when known.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Covariance>,
+    /// Parameters the measurements did not determine (`rigcal identify`): held at nominal,
+    /// so absent from the parameters and from every export.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub undetermined: Vec<UndeterminedEntry>,
+}
+
+/// A parameter the measurements did not determine, in file units.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct UndeterminedEntry {
+    /// Its name (`d5`, `marker.z`).
+    pub name: String,
+    /// Its column's part independent of the determined ones, relative to its length (below
+    /// [`crate::identification::DETERMINED_TOL`]).
+    pub independent: f64,
+    /// The determined parameters whose shifts have its effect: `[name, coefficient]` with the
+    /// coefficient in their unit per this parameter's unit (mm or deg), largest first.
+    pub equivalent: Vec<(String, f64)>,
+}
+
+/// The undetermined parameters of a fit as model-file entries.
+pub fn undetermined_entries(rig: &Rig, fit: &FitResult) -> Vec<UndeterminedEntry> {
+    let layout = rig.chain.layout();
+    fit.undetermined
+        .iter()
+        .map(|u| {
+            let id = layout.ids()[u.param];
+            UndeterminedEntry {
+                name: layout.name(id),
+                independent: u.independent,
+                equivalent: u
+                    .combination
+                    .iter()
+                    .filter(|(_, c)| c.abs() > 1e-9)
+                    .take(6)
+                    .map(|&(b, c)| {
+                        let bid = layout.ids()[b];
+                        // basis units per parameter unit → file units per file unit
+                        let v = bid.kind.to_file_units(c) / id.kind.to_file_units(1.0);
+                        (layout.name(bid), v)
+                    })
+                    .collect(),
+            }
+        })
+        .collect()
 }
 
 /// The covariance of a model's fitted parameters (mm and degrees, as the entries).
@@ -291,6 +335,7 @@ impl ModelFile {
             },
         );
         file.covariance = Some(Covariance::of(rig, fit));
+        file.undetermined = undetermined_entries(rig, fit);
         file
     }
 
@@ -310,11 +355,22 @@ impl ModelFile {
             outliers: Vec::new(),
             effects: Vec::new(),
             covariance: None,
+            undetermined: Vec::new(),
         }
     }
 
-    /// Writes the model as pretty JSON.
+    /// Writes the model as pretty JSON. A value that is not a finite number (JSON would write
+    /// it as `null`, which no reader takes for a number) is refused, naming where it is, and
+    /// nothing is written.
     pub fn save(&self, path: &Path) -> Result<(), ModelError> {
+        if let Err(at) = finite::check(self) {
+            return Err(ModelError::Format {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "not written: `{at}` is not a finite number; the fit or model it came from is broken (refit, and report it if the recording is sound)"
+                ),
+            });
+        }
         let text = serde_json::to_string_pretty(self).map_err(|e| ModelError::Format {
             path: path.to_path_buf(),
             reason: e.to_string(),
@@ -538,5 +594,323 @@ fn json_error(path: &Path, e: &serde_json::Error) -> ModelError {
         line: e.line(),
         column: e.column(),
         reason: e.to_string(),
+    }
+}
+
+/// Finds a float that is not finite anywhere in a serialisable value: a serializer that writes
+/// nothing and keeps the path of keys and indices it is at (`model.parameters[3].value`).
+mod finite {
+    use serde::ser::{self, Serialize};
+    use std::fmt;
+
+    /// The path of the first non-finite float in `value`, as `Err`.
+    pub(super) fn check<T: Serialize + ?Sized>(value: &T) -> Result<(), String> {
+        let mut walker = Walker { path: Vec::new() };
+        match value.serialize(&mut walker) {
+            Ok(()) => Ok(()),
+            Err(Found(at)) => Err(at),
+        }
+    }
+
+    #[derive(Debug)]
+    pub(super) struct Found(String);
+
+    impl fmt::Display for Found {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str(&self.0)
+        }
+    }
+
+    impl std::error::Error for Found {}
+
+    impl ser::Error for Found {
+        fn custom<M: fmt::Display>(msg: M) -> Self {
+            Found(msg.to_string())
+        }
+    }
+
+    struct Walker {
+        path: Vec<String>,
+    }
+
+    impl Walker {
+        fn here(&self) -> String {
+            let mut s = String::new();
+            for p in &self.path {
+                if !p.starts_with('[') && !s.is_empty() {
+                    s.push('.');
+                }
+                s.push_str(p);
+            }
+            if s.is_empty() {
+                s.push_str("(top level)");
+            }
+            s
+        }
+
+        fn float(&self, v: f64) -> Result<(), Found> {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err(Found(format!("{} = {v}", self.here())))
+            }
+        }
+
+        fn at<T: Serialize + ?Sized>(&mut self, key: String, v: &T) -> Result<(), Found> {
+            self.path.push(key);
+            let r = v.serialize(&mut *self);
+            self.path.pop();
+            r
+        }
+    }
+
+    /// A compound value being walked: its next index.
+    pub(super) struct Compound<'a> {
+        walker: &'a mut Walker,
+        next: usize,
+    }
+
+    impl Compound<'_> {
+        fn element<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), Found> {
+            let key = format!("[{}]", self.next);
+            self.next += 1;
+            self.walker.at(key, v)
+        }
+    }
+
+    macro_rules! ok {
+        ($($name:ident($($t:ty),*)),* $(,)?) => {
+            $(fn $name(self, $(_: $t),*) -> Result<(), Found> { Ok(()) })*
+        };
+    }
+
+    impl<'a> ser::Serializer for &'a mut Walker {
+        type Ok = ();
+        type Error = Found;
+        type SerializeSeq = Compound<'a>;
+        type SerializeTuple = Compound<'a>;
+        type SerializeTupleStruct = Compound<'a>;
+        type SerializeTupleVariant = Compound<'a>;
+        type SerializeMap = Compound<'a>;
+        type SerializeStruct = Compound<'a>;
+        type SerializeStructVariant = Compound<'a>;
+
+        ok!(
+            serialize_bool(bool),
+            serialize_i8(i8),
+            serialize_i16(i16),
+            serialize_i32(i32),
+            serialize_i64(i64),
+            serialize_u8(u8),
+            serialize_u16(u16),
+            serialize_u32(u32),
+            serialize_u64(u64),
+            serialize_char(char),
+            serialize_str(&str),
+            serialize_bytes(&[u8]),
+            serialize_none(),
+            serialize_unit(),
+            serialize_unit_struct(&'static str),
+            serialize_unit_variant(&'static str, u32, &'static str),
+        );
+
+        fn serialize_f32(self, v: f32) -> Result<(), Found> {
+            self.float(f64::from(v))
+        }
+
+        fn serialize_f64(self, v: f64) -> Result<(), Found> {
+            self.float(v)
+        }
+
+        fn serialize_some<T: Serialize + ?Sized>(self, v: &T) -> Result<(), Found> {
+            v.serialize(self)
+        }
+
+        fn serialize_newtype_struct<T: Serialize + ?Sized>(
+            self,
+            _: &'static str,
+            v: &T,
+        ) -> Result<(), Found> {
+            v.serialize(self)
+        }
+
+        fn serialize_newtype_variant<T: Serialize + ?Sized>(
+            self,
+            _: &'static str,
+            _: u32,
+            variant: &'static str,
+            v: &T,
+        ) -> Result<(), Found> {
+            self.at(variant.to_string(), v)
+        }
+
+        fn serialize_seq(self, _: Option<usize>) -> Result<Compound<'a>, Found> {
+            Ok(Compound {
+                walker: self,
+                next: 0,
+            })
+        }
+
+        fn serialize_tuple(self, _: usize) -> Result<Compound<'a>, Found> {
+            self.serialize_seq(None)
+        }
+
+        fn serialize_tuple_struct(self, _: &'static str, _: usize) -> Result<Compound<'a>, Found> {
+            self.serialize_seq(None)
+        }
+
+        fn serialize_tuple_variant(
+            self,
+            _: &'static str,
+            _: u32,
+            _: &'static str,
+            _: usize,
+        ) -> Result<Compound<'a>, Found> {
+            self.serialize_seq(None)
+        }
+
+        fn serialize_map(self, _: Option<usize>) -> Result<Compound<'a>, Found> {
+            self.serialize_seq(None)
+        }
+
+        fn serialize_struct(self, _: &'static str, _: usize) -> Result<Compound<'a>, Found> {
+            self.serialize_seq(None)
+        }
+
+        fn serialize_struct_variant(
+            self,
+            _: &'static str,
+            _: u32,
+            _: &'static str,
+            _: usize,
+        ) -> Result<Compound<'a>, Found> {
+            self.serialize_seq(None)
+        }
+    }
+
+    impl ser::SerializeSeq for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_element<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), Found> {
+            self.element(v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    impl ser::SerializeTuple for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_element<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), Found> {
+            self.element(v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    impl ser::SerializeTupleStruct for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_field<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), Found> {
+            self.element(v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    impl ser::SerializeTupleVariant for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_field<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), Found> {
+            self.element(v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    impl ser::SerializeMap for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_key<T: Serialize + ?Sized>(&mut self, _: &T) -> Result<(), Found> {
+            Ok(())
+        }
+        fn serialize_value<T: Serialize + ?Sized>(&mut self, v: &T) -> Result<(), Found> {
+            self.element(v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    impl ser::SerializeStruct for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_field<T: Serialize + ?Sized>(
+            &mut self,
+            key: &'static str,
+            v: &T,
+        ) -> Result<(), Found> {
+            self.walker.at(key.to_string(), v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    impl ser::SerializeStructVariant for Compound<'_> {
+        type Ok = ();
+        type Error = Found;
+        fn serialize_field<T: Serialize + ?Sized>(
+            &mut self,
+            key: &'static str,
+            v: &T,
+        ) -> Result<(), Found> {
+            self.walker.at(key.to_string(), v)
+        }
+        fn end(self) -> Result<(), Found> {
+            Ok(())
+        }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        #[derive(serde::Serialize)]
+        struct Inner {
+            value: f64,
+            note: Option<f64>,
+        }
+
+        #[derive(serde::Serialize)]
+        struct Outer {
+            name: String,
+            parameters: Vec<Inner>,
+        }
+
+        #[test]
+        fn the_first_non_finite_float_is_named_by_its_path() {
+            let mut o = Outer {
+                name: "m".into(),
+                parameters: vec![
+                    Inner {
+                        value: 1.0,
+                        note: None,
+                    },
+                    Inner {
+                        value: 2.0,
+                        note: Some(3.0),
+                    },
+                ],
+            };
+            assert_eq!(super::check(&o), Ok(()));
+            o.parameters[1].value = f64::NAN;
+            assert_eq!(
+                super::check(&o),
+                Err("parameters[1].value = NaN".to_string())
+            );
+        }
     }
 }

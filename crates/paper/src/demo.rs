@@ -58,6 +58,8 @@ pub struct DemoOptions {
     pub learner_tolerance: Option<f64>,
     /// What every FCMAC is trained to reproduce.
     pub fcmac_training: FcmacTraining,
+    /// The division's acceptance ([`CalibrationOptions::confidence_z`]); None: the library's.
+    pub confidence_z: Option<f64>,
 }
 
 /// What the demo tells its caller as it goes.
@@ -112,6 +114,14 @@ pub enum DemoError {
     /// A report could not be made into JSON.
     #[error(transparent)]
     Json(#[from] serde_json::Error),
+    /// One seed of a sweep ([`crate::seeds`]) failed.
+    #[error("seed {seed}: {source}")]
+    Seed {
+        /// The seed.
+        seed: u64,
+        /// What failed.
+        source: Box<DemoError>,
+    },
 }
 
 impl From<rigcal_core::rig::RigError> for DemoError {
@@ -146,10 +156,66 @@ pub struct DemoSummary {
     pub rig: Sec7Summary,
 }
 
-/// The demo's run: its options and the sink it tells.
+/// The demo's run: its options, the paths of section 6 and the sink it tells.
 struct Demo<'a> {
     o: &'a DemoOptions,
+    paths: PathSet,
     tell: &'a mut dyn FnMut(DemoEvent<'_>),
+}
+
+/// Which paths section 6's figures are evaluated along (and where Fig. 8's unmeasurable region
+/// lies).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum PathSet {
+    /// The paper's: the Fig. 6 joint path, the Fig. 7 spherical path, Fig. 8's region half way
+    /// along the Fig. 6 path ([`Preset::fig8_point_deg`]). The figures the README reports.
+    Paper,
+    /// Paths no reported figure uses, for choosing settings (docs/seeds.md): a joint line on
+    /// the other side of the base, (−125°, 40°, −60°) → (−60°, 70°, −30°); a spherical line
+    /// (600 mm, −125°, 10°) → (700 mm, −20°, −10°); the unmeasurable region half way along
+    /// the joint line, at (−92.5°, 55°, −45°).
+    Tuning,
+}
+
+/// The tuning set's joint line (q1, q2, q3 in deg).
+const TUNING_JOINT: [[f64; 3]; 2] = [[-125.0, 40.0, -60.0], [-60.0, 70.0, -30.0]];
+/// The tuning set's spherical line (R mm, azimuth deg, elevation deg).
+const TUNING_SPHERICAL: [[f64; 3]; 2] = [[600.0, -125.0, 10.0], [700.0, -20.0, -10.0]];
+
+/// Section 6's paths of one set: joint, spherical, and the point of Fig. 8's unmeasurable
+/// region (q1, q2, q3 in deg).
+struct Paths {
+    joint: PathSpec,
+    spherical: PathSpec,
+    fig8_point_deg: [f64; 3],
+}
+
+impl PathSet {
+    fn paths(self, rig: &Rig, preset: &Preset) -> Result<Paths, DemoError> {
+        Ok(match self {
+            PathSet::Paper => Paths {
+                joint: calibration::fig6_path(rig, 101),
+                spherical: calibration::fig7_path(rig, 101).map_err(CalibrationError::from)?,
+                fig8_point_deg: preset.fig8_point_deg,
+            },
+            PathSet::Tuning => {
+                let [a, b] = TUNING_JOINT;
+                let [c, d] = TUNING_SPHERICAL;
+                Paths {
+                    joint: rigcal_model::report::joint_path(rig, "tuning joint path", &a, &b, 101),
+                    spherical: rigcal_model::report::spherical_path(
+                        rig,
+                        "tuning spherical path",
+                        c,
+                        d,
+                        101,
+                    )
+                    .map_err(CalibrationError::from)?,
+                    fig8_point_deg: std::array::from_fn(|k| 0.5 * (a[k] + b[k])),
+                }
+            }
+        })
+    }
 }
 
 /// Runs the demo into `opts.out`, telling `tell` what a terminal shows: the summary (also
@@ -169,7 +235,11 @@ pub fn run(
     }
     let out = &opts.out;
     std::fs::create_dir_all(out).map_err(|source| io("creating", out, source))?;
-    let mut demo = Demo { o: opts, tell };
+    let mut demo = Demo {
+        o: opts,
+        paths: PathSet::Paper,
+        tell,
+    };
     let started = Instant::now();
     let paper = demo.paper_steps()?;
     let rig = demo.rig_steps()?;
@@ -196,6 +266,81 @@ pub fn run(
         &(serde_json::to_string_pretty(&json)? + "\n"),
     )?;
     Ok(json)
+}
+
+/// Section 6 alone (the demo's first step) into `opts.out`, along the paths of `paths`:
+/// what the seed sweep ([`crate::seeds`]) runs at each seed.
+pub fn paper_regime(
+    opts: &DemoOptions,
+    paths: PathSet,
+    tell: &mut dyn FnMut(DemoEvent<'_>),
+) -> Result<PaperRegimeSummary, DemoError> {
+    if let Some(f) = [PAPER_RIG, PAPER_SCENARIO]
+        .into_iter()
+        .find(|f| !Path::new(f).exists())
+    {
+        return Err(DemoError::NotFound(f));
+    }
+    let out = &opts.out;
+    std::fs::create_dir_all(out).map_err(|source| io("creating", out, source))?;
+    Demo {
+        o: opts,
+        paths,
+        tell,
+    }
+    .paper_steps()
+}
+
+/// The tuning set's section 7 path (world mm): a measurable straight line of 700 mm on the
+/// other side of the table's reach from the preset's, which no reported figure uses.
+pub const TUNING_SEC7_PATH_MM: [[f64; 3]; 2] = [[300.0, 330.0, 40.0], [-300.0, 480.0, 360.0]];
+
+/// Section 7's options at the demo's settings, along the paths of `paths`, through `MJ` too
+/// when `joint_commands`.
+fn sec7_options(o: &DemoOptions, paths: PathSet, joint_commands: bool) -> Sec7Options {
+    let mut calibration = o.preset.section7_calibration();
+    calibration.seed = o.seed;
+    calibration.learner_tolerance = o.learner_tolerance;
+    calibration.learner_settings.training = o.fcmac_training;
+    calibration.confidence_z = o.confidence_z.unwrap_or(calibration.confidence_z);
+    Sec7Options {
+        calibration,
+        path_points: o.path_points,
+        path_mm: match paths {
+            PathSet::Paper => o.preset.section7.path_mm,
+            PathSet::Tuning => TUNING_SEC7_PATH_MM,
+        },
+        joint_commands,
+    }
+}
+
+/// [`sec7::run`] into `files.out`, replacing what an earlier demo wrote there.
+fn run_sec7(
+    files: Sec7Files<'_>,
+    opts: &Sec7Options,
+    progress: &mut dyn FnMut(Sec7Stage),
+) -> Result<Sec7Report, DemoError> {
+    clear_sec7_dir(files.out)?;
+    Ok(sec7::run(files, opts, progress)?)
+}
+
+/// Section 7 alone (the demo's second step without the diagnosis) into `opts.out`/rig, along
+/// the path of `paths`, through the rig's own command path only (`MP` on `rigs/rv-m2.toml`):
+/// what the seed sweep ([`crate::seeds`]) runs at each seed with `--rig`.
+pub fn rig_experiment(opts: &DemoOptions, paths: PathSet) -> Result<Sec7Report, DemoError> {
+    if let Some(f) = [REAL_RIG, REAL_SCENARIO]
+        .into_iter()
+        .find(|f| !Path::new(f).exists())
+    {
+        return Err(DemoError::NotFound(f));
+    }
+    let out = opts.out.join("rig");
+    let files = Sec7Files {
+        rig: Path::new(REAL_RIG),
+        scenario: Path::new(REAL_SCENARIO),
+        out: &out,
+    };
+    run_sec7(files, &sec7_options(opts, paths, false), &mut |_| {})
 }
 
 fn io(doing: &'static str, path: &Path, source: std::io::Error) -> DemoError {
@@ -253,6 +398,7 @@ impl Demo<'_> {
         o.seed = self.o.seed;
         o.learner_tolerance = self.o.learner_tolerance;
         o.learner_settings.training = self.o.fcmac_training;
+        o.confidence_z = self.o.confidence_z.unwrap_or(o.confidence_z);
         o
     }
 
@@ -264,7 +410,8 @@ impl Demo<'_> {
         self.heading(
             "1. Seed 000's simulations in the paper's regime (sim/paper-fig6.toml, ideal instrument)",
         );
-        let fig6_path = calibration::fig6_path(&rig, 101);
+        let paths = self.paths.paths(&rig, &self.o.preset)?;
+        let fig6_path = paths.joint;
         let fig6 = self.paper_model(&rig, &sc, "fig6", &opts)?;
         let fig6_run = self.paper_run(PaperFigure::Fig6, Selection::Kappa, &fig6, &fig6_path)?;
         // D-optimal locations: at the cap of 130 the κ rule leaves regions above 0.1 mm on the
@@ -274,9 +421,9 @@ impl Demo<'_> {
             ..self.options(Space::Cartesian)
         };
         let fig7 = self.paper_model(&rig, &sc, "fig7", &cartesian)?;
-        let fig7_path = calibration::fig7_path(&rig, 101).map_err(CalibrationError::from)?;
+        let fig7_path = paths.spherical;
         let fig7_run = self.paper_run(PaperFigure::Fig7, Selection::DOptimal, &fig7, &fig7_path)?;
-        let at = self.o.preset.fig8_point_deg;
+        let at = paths.fig8_point_deg;
         let fig8_opts = CalibrationOptions {
             unmeasurable_at: Some(at),
             unmeasurable_depth: Some(leaf_depth_at(&fig6.0, &rig, at)?),
@@ -402,24 +549,15 @@ impl Demo<'_> {
     /// the geometric model leaves out of the division session's recording.
     fn rig_steps(&mut self) -> Result<Sec7Report, DemoError> {
         let out = self.o.out.join("rig");
-        clear_sec7_dir(&out)?;
         self.heading("2. Seed 000 section 7 on the real rig's emulators (sim/rig-sec7.toml): registration, region sessions, the path measured by the rig");
-        let mut calibration = self.o.preset.section7_calibration();
-        calibration.seed = self.o.seed;
-        calibration.learner_tolerance = self.o.learner_tolerance;
-        calibration.learner_settings.training = self.o.fcmac_training;
-        let opts = Sec7Options {
-            calibration,
-            path_points: self.o.path_points,
-            ..Sec7Options::of(&self.o.preset)
-        };
+        let opts = sec7_options(self.o, PathSet::Paper, true);
         let files = Sec7Files {
             rig: Path::new(REAL_RIG),
             scenario: Path::new(REAL_SCENARIO),
             out: &out,
         };
         let tell = &mut *self.tell;
-        let report = sec7::run(files, &opts, &mut |stage| tell(DemoEvent::Sec7(stage)))?;
+        let report = run_sec7(files, &opts, &mut |stage| tell(DemoEvent::Sec7(stage)))?;
         self.say(&report.text());
         for plot in report.plot(&self.o.out.join("rig-plots"))? {
             self.say(&format!("plot: {}\n", plot.display()));

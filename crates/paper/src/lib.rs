@@ -6,6 +6,7 @@
 //! | [`paper_regime`] | seed 000, section 6: Figs. 6, 7 and 8 in the paper's regime |
 //! | [`sec7`] | seed 000, section 7: the experiment on the (emulated) rig |
 //! | [`demo`] | `rigcal demo`: sections 6 and 7 at the preset's settings, the summary |
+//! | [`seeds`] | `rigcal demo --seeds`: section 6's claims over many seeds, pass rates, medians, worst |
 //! | [`reproduce`] | seed 001: the papers' robots, their other schemes and tables, beside the papers' numbers (`rigcal reproduce`) |
 
 #![warn(missing_docs)]
@@ -16,3 +17,4 @@ pub mod paper_regime;
 pub mod preset;
 pub mod reproduce;
 pub mod sec7;
+pub mod seeds;

@@ -7,6 +7,11 @@
 //! through joint commands (`MJ`), each in the division session's frame; the rig's own
 //! instrument measures the distance to each target.
 //!
+//! Each region is tested sequentially on the evidence of its enclosing regions' tests, and the
+//! leaves are refitted on their tests at the end ([`Section7::test_plan`](crate::preset::Section7),
+//! docs/seeds.md): that, and the paper's 85 regions as the cap, keep the whole experiment near
+//! the paper's "couple of hours" of rig time.
+//!
 //! On a `cartesian` rig every move of the division session goes through `MP` too: its test
 //! points are compensated commands, and joint rounding (0.1°) alone would cost about 0.43 mm
 //! of a 0.5 mm demand (conventions §9b).
@@ -589,8 +594,10 @@ impl Sec7Report {
         let d = &self.division.report;
         let _ = writeln!(
             s,
-            "division session: {} measurements ({ident} identification, {tests} test), {} skipped; registration RMS {}; rig time {} on the dry-run clock, {} as planned",
+            "division session: {} measurements ({ident} identification, {tests} test; paper about {} × {} identification), {} skipped; registration RMS {}; rig time {} on the dry-run clock, {} as planned (paper: \"a couple of hours\")",
             d.ok,
+            SEED_000.section7.regions,
+            SEED_000.per_region,
             d.skipped.len(),
             d.registration_rms_mm.map_or("-".into(), |r| format!("{r:.3} mm")),
             hours(d.rig_time_s),

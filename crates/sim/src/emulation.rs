@@ -141,12 +141,60 @@ pub fn sim_world(scenario: &Scenario) -> SimWorld {
 /// The rig's devices for a session: emulators on `scenario`'s world (on `clock`), or what the
 /// rig file's `[devices]` says when there is no scenario ([`rigcal_devices::devices::open_rig`]).
 /// The scenario must be for this rig (the caller checks names and instruments).
+///
+/// A rehearsal's rig file (`[devices] world`, written by `rigcal sim-device rig --pty
+/// --write-rig`) also names the socket of the world behind its served emulators: the session's
+/// hook is then that world's ([`RemoteHook`](rigcal_devices::devices::sim_device::RemoteHook)),
+/// so draws, time base and motion history reach it as they reach an in-process world.
 pub fn open_rig(
     rig: &Rig,
     scenario: Option<&Scenario>,
     clock: SimClock,
 ) -> Result<OpenedRig, DeviceError> {
-    rigcal_devices::devices::open_rig(rig, scenario.map(sim_world), clock)
+    let mut opened = rigcal_devices::devices::open_rig(rig, scenario.map(sim_world), clock)?;
+    if scenario.is_none() {
+        if let Some(hook) = served_world_hook(rig, &opened)? {
+            opened.hook = hook;
+        }
+    }
+    Ok(opened)
+}
+
+/// The hook of the served world a rehearsal's rig file names, if it names one.
+#[cfg(unix)]
+fn served_world_hook(
+    rig: &Rig,
+    opened: &OpenedRig,
+) -> Result<Option<Box<dyn RigHook>>, DeviceError> {
+    use rigcal_devices::devices::sim_device::RemoteHook;
+    let cfg = rigcal_devices::config::DevicesConfig::read(rig);
+    let Some(path) = cfg.world else {
+        return Ok(None);
+    };
+    let hook = RemoteHook::connect(
+        std::path::Path::new(&path),
+        Arc::clone(&opened.devices.clock),
+    )
+    .map_err(|e| DeviceError::Config {
+        key: "devices.world".into(),
+        reason: e.reason,
+    })?;
+    Ok(Some(Box::new(hook)))
+}
+
+/// No served worlds off Unix (emulators are served on pseudo-terminals only there).
+#[cfg(not(unix))]
+fn served_world_hook(
+    rig: &Rig,
+    _opened: &OpenedRig,
+) -> Result<Option<Box<dyn RigHook>>, DeviceError> {
+    match rigcal_devices::config::DevicesConfig::read(rig).world {
+        Some(_) => Err(DeviceError::Config {
+            key: "devices.world".into(),
+            reason: "served simulated worlds (rehearsals) exist only on Unix".into(),
+        }),
+        None => Ok(None),
+    }
 }
 
 /// The session's [`RigHook`] on a simulated world: draws, time base and motion history go to

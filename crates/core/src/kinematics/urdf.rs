@@ -96,9 +96,12 @@ fn pose(p: &urdf_rs::Pose) -> Isometry3<f64> {
     )
 }
 
-/// Converts the chain of a URDF (text) from `base` link to `tip` link.
-pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, UrdfError> {
-    let robot = urdf_rs::read_from_string(text).map_err(|e| UrdfError::Parse(e.to_string()))?;
+/// The joints from link `base` down to link `tip`, in order.
+fn joint_path<'r>(
+    robot: &'r urdf_rs::Robot,
+    base: &str,
+    tip: &str,
+) -> Result<Vec<&'r urdf_rs::Joint>, UrdfError> {
     for l in [base, tip] {
         if !robot.links.iter().any(|k| k.name == l) {
             return Err(UrdfError::NoLink(l.to_string()));
@@ -107,7 +110,10 @@ pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, U
     let mut path = Vec::new();
     let mut link = tip.to_string();
     while link != base {
-        let Some(j) = robot.joints.iter().find(|j| j.child.link == link) else {
+        // A loop in a malformed tree would never reach the base: a chain has at most one joint
+        // per link.
+        let found = robot.joints.iter().find(|j| j.child.link == link);
+        let (Some(j), true) = (found, path.len() <= robot.joints.len()) else {
             return Err(UrdfError::NotAChain {
                 base: base.into(),
                 tip: tip.into(),
@@ -117,6 +123,148 @@ pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, U
         link = j.parent.link.clone();
     }
     path.reverse();
+    Ok(path)
+}
+
+/// How a joint on a [`UrdfPath`] moves.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StepMotion {
+    /// Does not move.
+    Fixed,
+    /// Turns about this unit axis (joint frame) by q rad.
+    Revolute(Vector3<f64>),
+    /// Slides along this unit axis (joint frame) by q mm.
+    Prismatic(Vector3<f64>),
+}
+
+/// One joint of a URDF chain as the file gives it: its origin (parent link to joint frame, mm)
+/// and its motion.
+#[derive(Debug, Clone)]
+pub struct UrdfStep {
+    /// Joint name.
+    pub name: String,
+    /// Parent link frame to joint frame at q = 0 (mm).
+    pub origin: Isometry3<f64>,
+    /// The motion.
+    pub motion: StepMotion,
+}
+
+/// A URDF chain exactly as written (origins and axes, fixed joints included): its forward
+/// kinematics is the reference a converted rig is checked against.
+#[derive(Debug, Clone)]
+pub struct UrdfPath {
+    /// The joints from the base link to the tip link.
+    pub steps: Vec<UrdfStep>,
+}
+
+impl UrdfPath {
+    /// Pose of the tip link in the base link (mm) for the moving joints' values `q` (rad or
+    /// mm, in chain order).
+    pub fn tip_pose(&self, q: &[f64]) -> Isometry3<f64> {
+        let mut t = Isometry3::identity();
+        let mut k = 0;
+        for s in &self.steps {
+            t *= s.origin;
+            match s.motion {
+                StepMotion::Fixed => {}
+                StepMotion::Revolute(axis) => {
+                    let v = q.get(k).copied().unwrap_or(0.0);
+                    k += 1;
+                    t *= UnitQuaternion::from_axis_angle(&nalgebra::Unit::new_unchecked(axis), v);
+                }
+                StepMotion::Prismatic(axis) => {
+                    let v = q.get(k).copied().unwrap_or(0.0);
+                    k += 1;
+                    t *= Translation3::from(axis * v);
+                }
+            }
+        }
+        t
+    }
+}
+
+/// The chain of a URDF (text) from `base` link to `tip` link, as written.
+pub fn urdf_path(text: &str, base: &str, tip: &str) -> Result<UrdfPath, UrdfError> {
+    let robot = urdf_rs::read_from_string(text).map_err(|e| UrdfError::Parse(e.to_string()))?;
+    let steps = joint_path(&robot, base, tip)?
+        .into_iter()
+        .map(|j| {
+            let axis = Vector3::new(j.axis.xyz[0], j.axis.xyz[1], j.axis.xyz[2]);
+            let moving = !matches!(j.joint_type, urdf_rs::JointType::Fixed);
+            if moving && axis.norm() < 1e-12 {
+                return Err(UrdfError::ZeroAxis(j.name.clone()));
+            }
+            let motion = match j.joint_type {
+                urdf_rs::JointType::Fixed => StepMotion::Fixed,
+                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous => {
+                    StepMotion::Revolute(axis.normalize())
+                }
+                urdf_rs::JointType::Prismatic => StepMotion::Prismatic(axis.normalize()),
+                ref other => {
+                    return Err(UrdfError::Unsupported {
+                        joint: j.name.clone(),
+                        kind: format!("{other:?}").to_lowercase(),
+                    })
+                }
+            };
+            Ok(UrdfStep {
+                name: j.name.clone(),
+                origin: pose(&j.origin),
+                motion,
+            })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(UrdfPath { steps })
+}
+
+/// The largest distance (mm) between the tip frames of `chain` (measurement frame and marker
+/// left out) and of the URDF `path` over `samples` joint vectors drawn uniformly within the
+/// chain's limits (a fixed seed, so a run is repeatable), with the worst joint vector. Each tip
+/// frame is compared by its origin and by points 100 mm out along each of its axes, so a
+/// turned tip shows as well as a moved one.
+pub fn max_tip_deviation(path: &UrdfPath, chain: &SerialChain, samples: usize) -> (f64, Vec<f64>) {
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(2021);
+    let e = ErrorParams::zeros(chain.layout());
+    let probes = [
+        Point3::origin(),
+        Point3::new(100.0, 0.0, 0.0),
+        Point3::new(0.0, 100.0, 0.0),
+        Point3::new(0.0, 0.0, 100.0),
+    ];
+    let mut worst = (0.0, Vec::new());
+    // q = 0 first: the conversion is built there, every other sample tests the joint axes.
+    for k in 0..samples.max(1) {
+        let q: Vec<f64> = chain
+            .joints()
+            .iter()
+            .map(|j| match k {
+                0 if j.min <= 0.0 && j.max >= 0.0 => 0.0,
+                0 => j.min,
+                _ if j.max > j.min => rng.random_range(j.min..=j.max),
+                _ => j.min,
+            })
+            .collect();
+        let rig = chain.frame().inverse() * chain.tool_pose(&q, &e);
+        let urdf = path.tip_pose(&q);
+        let dev = probes
+            .iter()
+            .map(|p| (rig * p - urdf * p).norm())
+            .fold(0.0, f64::max);
+        if dev.is_nan() {
+            return (f64::NAN, q);
+        }
+        if dev > worst.0 || worst.1.is_empty() {
+            worst = (dev, q);
+        }
+    }
+    worst
+}
+
+/// Converts the chain of a URDF (text) from `base` link to `tip` link.
+pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, UrdfError> {
+    let robot = urdf_rs::read_from_string(text).map_err(|e| UrdfError::Parse(e.to_string()))?;
+    let path = joint_path(&robot, base, tip)?;
     let mut t = Isometry3::identity();
     let mut moving = Vec::new();
     // Per moving joint: (Σ m, Σ m·c) of the links it carries up to the next moving joint, with c
@@ -179,12 +327,21 @@ pub fn chain_from_urdf(text: &str, base: &str, tip: &str) -> Result<UrdfChain, U
 }
 
 /// The frame with origin `o`, z along `z`, x along `x` (made orthogonal).
+///
+/// The columns are orthonormal by construction, so the rotation is read off them directly.
+/// (`UnitQuaternion::from_matrix` is an iterative polar decomposition started at the
+/// identity: for a frame turned by 180°, such as UR's `base_link` yaw of π, it stalls on a
+/// saddle and returns a rotation off by up to a few hundredths of a degree.)
 fn frame(o: Vector3<f64>, z: Vector3<f64>, x: Vector3<f64>) -> Isometry3<f64> {
     let z = z.normalize();
     let x = (x - z * z.dot(&x)).normalize();
     let y = z.cross(&x);
     let m = nalgebra::Matrix3::from_columns(&[x, y, z]);
-    Isometry3::from_parts(Translation3::from(o), UnitQuaternion::from_matrix(&m))
+    let r = nalgebra::Rotation3::from_matrix_unchecked(m);
+    Isometry3::from_parts(
+        Translation3::from(o),
+        UnitQuaternion::from_rotation_matrix(&r),
+    )
 }
 
 fn any_perpendicular(z: &Vector3<f64>) -> Vector3<f64> {
@@ -264,12 +421,11 @@ fn common_normal(
     let t = (e - b * d) / den;
     let f1 = p1 + z1 * s;
     let f2 = p2 + z2 * t;
-    let v = f2 - f1;
-    let dir = if v.norm() > 1e-9 {
-        v.normalize()
-    } else {
-        c.normalize()
-    };
+    // The common normal lies along z1 × z2; its sign comes from the feet when they are apart.
+    // Taking the direction from the feet themselves would let rounding in them tilt it off the
+    // axes' normal, and the twist and the next frame with it.
+    let n = c.normalize();
+    let dir = if (f2 - f1).dot(&n) < -1e-9 { -n } else { n };
     Some((f1, f2, dir))
 }
 
@@ -506,6 +662,53 @@ mod tests {
             tool: Isometry3::identity(),
             masses: vec![None, Some((2.0, Vector3::new(225.0, 0.0, 200.0)))],
         }
+    }
+
+    const TWO_LINK: &str = r#"<robot name="t">
+  <link name="b"/><link name="l1"/><link name="l2"/><link name="tip"/>
+  <joint name="j1" type="revolute"><parent link="b"/><child link="l1"/>
+    <origin xyz="0 0 0.1" rpy="0 0 3.141592653589793"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
+    <origin xyz="0.3 0 0" rpy="1.5707963267948966 0 0"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="1" velocity="1"/></joint>
+  <joint name="t" type="fixed"><parent link="l2"/><child link="tip"/>
+    <origin xyz="0.2 0 0" rpy="0 0 -3.141592653589793"/></joint>
+</robot>"#;
+
+    fn converted(text: &str) -> String {
+        let c = chain_from_urdf(text, "b", "tip").expect("converts");
+        let names = RigFileNames {
+            name: "t",
+            source: "t.urdf",
+            base: "b",
+            tip: "tip",
+        };
+        rig_toml(&names, &c, &[])
+    }
+
+    #[test]
+    fn the_tip_check_sees_a_wrong_rig() {
+        let path = urdf_path(TWO_LINK, "b", "tip").expect("path");
+        let text = converted(TWO_LINK);
+        let rig = crate::rig::Rig::parse(&text, None).expect("loads");
+        let (dev, _) = max_tip_deviation(&path, &rig.chain, 16);
+        assert!(dev < 1e-9, "{dev}");
+        // One length 1 mm off: the check must see it.
+        let wrong = text.replacen("a_mm = 300", "a_mm = 301", 1);
+        assert_ne!(wrong, text, "{text}");
+        let rig = crate::rig::Rig::parse(&wrong, None).expect("loads");
+        let (dev, q) = max_tip_deviation(&path, &rig.chain, 16);
+        assert!(dev > 0.5 && q.len() == 2, "{dev}");
+    }
+
+    #[test]
+    fn frames_turned_half_a_turn_are_exact() {
+        // nalgebra's iterative `from_matrix` is 0.0155° off on such frames.
+        let f = frame(Vector3::zeros(), -Vector3::z(), -Vector3::x());
+        let m = f.rotation.to_rotation_matrix();
+        let want = nalgebra::Matrix3::new(-1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
+        assert!((m.matrix() - want).abs().max() < 1e-15, "{m}");
     }
 
     #[test]

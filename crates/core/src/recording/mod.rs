@@ -11,10 +11,13 @@
 
 pub mod import;
 
-pub use import::{import_csv, AngleUnit, CellAt, ImportError, ImportSpec, LengthUnit};
+pub use import::{
+    import_csv, import_file, AngleUnit, CellAt, ImportError, ImportInfo, ImportSpec, Imported,
+    LengthUnit,
+};
 
 use crate::kinematics::JointSpec;
-use nalgebra::Vector3;
+use nalgebra::{UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::fs::{File, OpenOptions};
@@ -149,6 +152,16 @@ pub struct Measurement {
     pub temp_c: Option<f64>,
     /// Payload (kg).
     pub load_kg: Option<f64>,
+    /// Measured orientation of the marker's (probe's) frame in the measurement frame, when the
+    /// instrument gives one (a 6-DoF probe). Files: `roll_deg, pitch_deg, yaw_deg`,
+    /// R = Rz(yaw)·Ry(pitch)·Rx(roll) as in rig files.
+    pub orientation: Option<UnitQuaternion<f64>>,
+    /// Standard deviations of the measured position's x, y and z (mm), when the instrument
+    /// states them. Files: `sigma_x_mm, sigma_y_mm, sigma_z_mm`.
+    pub position_sigma: Option<Vector3<f64>>,
+    /// Standard deviations of a small rotation of the measured frame about its own x, y and z
+    /// axes (rad). Files: `sigma_rx_deg, sigma_ry_deg, sigma_rz_deg`.
+    pub orientation_sigma: Option<Vector3<f64>>,
     /// What the row records.
     pub status: Status,
     /// Values of the recording's unknown columns, in [`Recording::extra_columns`] order.
@@ -176,6 +189,10 @@ pub struct SessionInfo {
     /// Free text.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub notes: Option<String>,
+    /// How a foreign file was imported (`rigcal import`): its dialect, units, and whether its
+    /// times were kept or lost.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub import: Option<ImportInfo>,
     /// Keys this version does not know.
     #[serde(flatten)]
     pub extra: toml::Table,
@@ -269,6 +286,20 @@ impl Recording {
         Ok(rec)
     }
 
+    /// Reads the first `len` bytes of a CSV file as a recording: a session's committed rows,
+    /// without what it wrote after its last journal commit.
+    pub fn read_prefix(
+        csv: &Path,
+        len: u64,
+        joints: &[JointSpec],
+    ) -> Result<Recording, RecordingError> {
+        let file = File::open(csv).map_err(|source| RecordingError::Io {
+            path: csv.to_path_buf(),
+            source,
+        })?;
+        read_csv(std::io::Read::take(file, len), csv, joints)
+    }
+
     /// Reads a recording that is to be fitted: as [`Recording::read`], and an error naming the
     /// file when it has no measured row (a session that measured nothing yet, say).
     pub fn read_measured(path: &Path, joints: &[JointSpec]) -> Result<Recording, RecordingError> {
@@ -290,10 +321,11 @@ impl Recording {
             path: dir.to_path_buf(),
             source,
         })?;
-        let mut w = RecordingWriter::create(
+        let mut w = RecordingWriter::create_with(
             &dir.join(MEASUREMENTS_CSV),
             &self.joints,
             &self.extra_columns,
+            PoseColumns::of(&self.rows),
         )?;
         for m in &self.rows {
             w.append(m)?;
@@ -323,14 +355,74 @@ pub fn read_session_info(dir: &Path) -> Result<Option<SessionInfo>, RecordingErr
         })
 }
 
-/// Writes `session.toml` into a recording directory.
+/// Writes `session.toml` into a recording directory, atomically (a temporary file renamed over
+/// it): a process killed meanwhile leaves the old file or the new one, never a torn one (a
+/// resumed session reads it back).
 pub fn write_session(dir: &Path, info: &SessionInfo) -> Result<(), RecordingError> {
     let path = dir.join(SESSION_TOML);
     let text = toml::to_string_pretty(info).map_err(|e| RecordingError::Session {
         path: path.clone(),
         reason: e.to_string(),
     })?;
-    std::fs::write(&path, text).map_err(|source| RecordingError::Io { path, source })
+    let tmp = dir.join(format!("{SESSION_TOML}.tmp"));
+    std::fs::write(&tmp, text).map_err(|source| RecordingError::Io {
+        path: tmp.clone(),
+        source,
+    })?;
+    std::fs::rename(&tmp, &path).map_err(|source| RecordingError::Io { path, source })
+}
+
+/// The orientation and standard-deviation columns, written after `status` when a recording has
+/// them (a recording without them is written as before).
+const POSE_COLUMNS: [&str; 9] = [
+    "roll_deg",
+    "pitch_deg",
+    "yaw_deg",
+    "sigma_x_mm",
+    "sigma_y_mm",
+    "sigma_z_mm",
+    "sigma_rx_deg",
+    "sigma_ry_deg",
+    "sigma_rz_deg",
+];
+
+/// Which of [`POSE_COLUMNS`]' three groups a recording file holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PoseColumns {
+    /// `roll_deg, pitch_deg, yaw_deg`.
+    pub orientation: bool,
+    /// `sigma_x_mm, sigma_y_mm, sigma_z_mm`.
+    pub position_sigma: bool,
+    /// `sigma_rx_deg, sigma_ry_deg, sigma_rz_deg`.
+    pub orientation_sigma: bool,
+}
+
+impl PoseColumns {
+    /// The groups any of `rows` carries.
+    pub fn of(rows: &[Measurement]) -> Self {
+        Self {
+            orientation: rows.iter().any(|m| m.orientation.is_some()),
+            position_sigma: rows.iter().any(|m| m.position_sigma.is_some()),
+            orientation_sigma: rows.iter().any(|m| m.orientation_sigma.is_some()),
+        }
+    }
+
+    fn groups(self) -> [bool; 3] {
+        [
+            self.orientation,
+            self.position_sigma,
+            self.orientation_sigma,
+        ]
+    }
+
+    /// The column names, in order.
+    fn names(self) -> impl Iterator<Item = &'static str> {
+        self.groups()
+            .into_iter()
+            .zip(POSE_COLUMNS.chunks(3))
+            .filter(|(on, _)| *on)
+            .flat_map(|(_, c)| c.iter().copied())
+    }
 }
 
 /// The optional columns, in the order they are written after `x_mm, y_mm, z_mm`.
@@ -346,6 +438,16 @@ const OPTIONAL: [&str; 9] = [
     "status",
 ];
 
+/// Whether header `i` is a pose column whose group of three is complete (and so is read, not
+/// kept as an extra column).
+fn cols_pose_member(headers: &[String], i: usize) -> bool {
+    let Some(k) = POSE_COLUMNS.iter().position(|c| *c == headers[i]) else {
+        return false;
+    };
+    let g = k / 3 * 3;
+    (g..g + 3).all(|j| headers.iter().any(|h| h == POSE_COLUMNS[j]))
+}
+
 struct Columns {
     seq: usize,
     t_s: usize,
@@ -357,6 +459,8 @@ struct Columns {
     temp: Option<usize>,
     load: Option<usize>,
     status: Option<usize>,
+    /// `roll_deg…`, `sigma_x_mm…`, `sigma_rx_deg…`, each group when all three are present.
+    pose: [Option<[usize; 3]>; 3],
     extra: Vec<usize>,
 }
 
@@ -453,6 +557,16 @@ fn read_csv<R: std::io::Read>(
         temp: find("temp_c"),
         load: find("load_kg"),
         status: find("status"),
+        pose: [0, 3, 6].map(|k| {
+            match (
+                find(POSE_COLUMNS[k]),
+                find(POSE_COLUMNS[k + 1]),
+                find(POSE_COLUMNS[k + 2]),
+            ) {
+                (Some(a), Some(b), Some(c)) => Some([a, b, c]),
+                _ => None,
+            }
+        }),
         extra: (0..headers.len())
             .filter(|&i| {
                 let h = headers[i].as_str();
@@ -461,6 +575,10 @@ fn read_csv<R: std::io::Read>(
                     || ["x_mm", "y_mm", "z_mm"].contains(&h)
                     || OPTIONAL.contains(&h)
                     || joint_cols.iter().any(|c| c == h))
+            })
+            .filter(|&i| {
+                // A pose column is read only with the other two of its group.
+                !cols_pose_member(&headers, i)
             })
             .collect(),
         q,
@@ -607,7 +725,8 @@ impl RowReader<'_> {
                 [None, None, None] => Ok(None),
                 v => Err(self.bad(
                     c[v.iter().position(Option::is_none).unwrap_or(0)],
-                    "a table coordinate is missing while the others are present",
+                    "this value is missing while the other two of its group (table point, \
+                     orientation or standard deviations) are present",
                 )),
             }
         };
@@ -620,6 +739,11 @@ impl RowReader<'_> {
             None => None,
         };
         let opt = |c: Option<usize>| c.map(|c| self.number(c)).transpose().map(Option::flatten);
+        let [orientation, position_sigma, orientation_sigma] =
+            [0, 1, 2].map(|k| triple(cols.pose[k]));
+        let deg = |v: Option<Vector3<f64>>| v.map(|v| v.map(f64::to_radians));
+        let orientation =
+            deg(orientation?).map(|r| UnitQuaternion::from_euler_angles(r.x, r.y, r.z));
         Ok(Measurement {
             seq,
             t_s: self.number(cols.t_s)?,
@@ -633,6 +757,9 @@ impl RowReader<'_> {
             panel_uv,
             temp_c: opt(cols.temp)?,
             load_kg: opt(cols.load)?,
+            orientation,
+            position_sigma: position_sigma?,
+            orientation_sigma: deg(orientation_sigma?),
             status,
             extra: cols
                 .extra
@@ -649,6 +776,7 @@ pub struct RecordingWriter {
     path: PathBuf,
     joints: Vec<JointSpec>,
     extra_columns: Vec<String>,
+    pose: PoseColumns,
     sync: bool,
 }
 
@@ -659,6 +787,16 @@ impl RecordingWriter {
         joints: &[JointSpec],
         extra_columns: &[String],
     ) -> Result<Self, RecordingError> {
+        Self::create_with(path, joints, extra_columns, PoseColumns::default())
+    }
+
+    /// As [`RecordingWriter::create`], with orientation and standard-deviation columns.
+    pub fn create_with(
+        path: &Path,
+        joints: &[JointSpec],
+        extra_columns: &[String],
+        pose: PoseColumns,
+    ) -> Result<Self, RecordingError> {
         let file = File::create(path).map_err(|source| RecordingError::Io {
             path: path.to_path_buf(),
             source,
@@ -668,9 +806,10 @@ impl RecordingWriter {
             path: path.to_path_buf(),
             joints: joints.to_vec(),
             extra_columns: extra_columns.to_vec(),
+            pose,
             sync: false,
         };
-        let header = header(joints, extra_columns);
+        let header = header_with(joints, extra_columns, pose);
         w.write_line(&header)?;
         Ok(w)
     }
@@ -717,6 +856,7 @@ impl RecordingWriter {
                 path: path.to_path_buf(),
                 joints: joints.to_vec(),
                 extra_columns: extra_columns.to_vec(),
+                pose: PoseColumns::default(),
                 sync: false,
             },
             torn,
@@ -731,7 +871,7 @@ impl RecordingWriter {
 
     /// Appends one row and flushes it to the operating system (and disk, with sync on).
     pub fn append(&mut self, m: &Measurement) -> Result<(), RecordingError> {
-        let line = row_text(m, &self.joints, self.extra_columns.len());
+        let line = row_text_with(m, &self.joints, self.pose, self.extra_columns.len());
         self.write_line(&line)
     }
 
@@ -754,10 +894,17 @@ impl RecordingWriter {
 
 /// The header line for these joints.
 pub fn header(joints: &[JointSpec], extra: &[String]) -> String {
+    header_with(joints, extra, PoseColumns::default())
+}
+
+/// The header line for these joints, with the orientation and standard-deviation columns
+/// `pose` asks for.
+pub fn header_with(joints: &[JointSpec], extra: &[String], pose: PoseColumns) -> String {
     let mut cols: Vec<String> = vec!["seq".into(), "t_s".into()];
     cols.extend(joints.iter().enumerate().map(|(i, j)| j.kind.column(i + 1)));
     cols.extend(["x_mm", "y_mm", "z_mm"].map(String::from));
     cols.extend(OPTIONAL.map(String::from));
+    cols.extend(pose.names().map(String::from));
     cols.extend(extra.iter().map(|c| csv_field(c)));
     cols.join(",")
 }
@@ -781,7 +928,17 @@ pub fn as_recorded(m: &Measurement, joints: &[JointSpec]) -> (Vec<f64>, Option<V
     (q, p)
 }
 
+#[cfg(test)]
 fn row_text(m: &Measurement, joints: &[JointSpec], n_extra: usize) -> String {
+    row_text_with(m, joints, PoseColumns::default(), n_extra)
+}
+
+fn row_text_with(
+    m: &Measurement,
+    joints: &[JointSpec],
+    pose: PoseColumns,
+    n_extra: usize,
+) -> String {
     let mut s = String::new();
     let _ = write!(s, "{},", m.seq);
     if let Some(t) = m.t_s {
@@ -810,11 +967,37 @@ fn row_text(m: &Measurement, joints: &[JointSpec], n_extra: usize) -> String {
     }
     s.push(',');
     s.push_str(&csv_field(&m.status.as_text()));
+    push_pose(&mut s, m, pose);
     for k in 0..n_extra {
         s.push(',');
         s.push_str(&csv_field(m.extra.get(k).map(String::as_str).unwrap_or("")));
     }
     s
+}
+
+/// The orientation (deg, 6 decimals: 2e-8 rad) and standard deviations (mm, deg, 8 decimals)
+/// `pose` asks for; empty fields where a row has none.
+fn push_pose(s: &mut String, m: &Measurement, pose: PoseColumns) {
+    let rpy = m.orientation.map(|r| {
+        let (a, b, c) = r.euler_angles();
+        Vector3::new(a, b, c).map(f64::to_degrees)
+    });
+    let values = [
+        rpy,
+        m.position_sigma,
+        m.orientation_sigma.map(|v| v.map(f64::to_degrees)),
+    ];
+    for ((on, v), digits) in pose.groups().into_iter().zip(values).zip([6, 8, 8]) {
+        if !on {
+            continue;
+        }
+        match v {
+            Some(v) => {
+                let _ = write!(s, ",{:.digits$},{:.digits$},{:.digits$}", v.x, v.y, v.z);
+            }
+            None => s.push_str(",,,"),
+        }
+    }
 }
 
 fn push_opt_vec(s: &mut String, v: Option<&Vector3<f64>>) {
@@ -1025,6 +1208,38 @@ mod tests {
             let rec = read_csv(t.as_bytes(), Path::new("r.csv"), &joints()).unwrap();
             assert_eq!(rec.lines, vec![2, 4], "{t:?}");
         }
+    }
+
+    #[test]
+    fn orientation_and_sigmas_round_trip_only_when_present() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut rec = mixed();
+        // An ok row without a point does not read back (nothing to do with these columns).
+        rec.rows
+            .retain(|m| m.status != Status::Ok || m.position.is_some());
+        let r = UnitQuaternion::from_euler_angles(0.3, -1.2, 2.9);
+        rec.rows[0].orientation = Some(r);
+        rec.rows[0].position_sigma = Some(Vector3::new(0.01, 0.02, 0.005));
+        rec.rows[0].orientation_sigma = Some(Vector3::new(1e-5, 2e-5, 3e-5));
+        rec.write_dir(dir.path()).unwrap();
+        let back = Recording::read(dir.path(), &joints()).unwrap();
+        let m = &back.rows[0];
+        assert!(m.orientation.unwrap().angle_to(&r) < 1e-7);
+        assert!((m.position_sigma.unwrap() - Vector3::new(0.01, 0.02, 0.005)).norm() < 1e-8);
+        assert!((m.orientation_sigma.unwrap() - Vector3::new(1e-5, 2e-5, 3e-5)).norm() < 1e-9);
+        assert_eq!(back.rows[3].orientation, None);
+        assert_eq!(back.rows[3].position_sigma, None);
+        assert!(back.extra_columns.is_empty(), "{:?}", back.extra_columns);
+        // Without them the file is written as before.
+        let plain = tempfile::tempdir().unwrap();
+        mixed().write_dir(plain.path()).unwrap();
+        let text = std::fs::read_to_string(plain.path().join(MEASUREMENTS_CSV)).unwrap();
+        assert_eq!(text.lines().next(), Some(header(&joints(), &[]).as_str()));
+        // A group missing a column stays an extra column.
+        let text = "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm,roll_deg,pitch_deg\n1,0,10,20,1,2,3,4,5\n";
+        let rec = read_csv(text.as_bytes(), Path::new("r.csv"), &joints()).unwrap();
+        assert_eq!(rec.extra_columns, vec!["roll_deg", "pitch_deg"]);
+        assert_eq!(rec.rows[0].orientation, None);
     }
 
     #[test]

@@ -19,9 +19,16 @@
 //! basis_priority = ["theta0", "a0"]          # preferred identifiable basis, in order
 //! measurement_frame = "fixed"                # "free" for an outside tracker
 //! marker = "fixed"
+//! max_angle_correction_deg = 90              # a fit beyond these is refused as diverged
+//! max_length_correction_mm = 130             # (defaults: 90°, a tenth of the reach)
 //! [instrument]
 //! kind = "ideal"                             # "table_panel" or "tracker"
 //! ```
+//!
+//! Every length is finite and at most [`MAX_LENGTH_MM`] (100 m) in size: nothing larger is an
+//! arm, and values near the float range would make every later computation overflow (an SVD
+//! of infinities never ends). A `nest_deg` in `[devices.arm]` with one value per joint must lie
+//! within the joint limits: the arm stands there after homing.
 //!
 //! The `[devices]` section (how each device is reached, and the numbers its driver, emulator
 //! and the session's procedures need) is kept as written; the devices layer reads it
@@ -120,7 +127,29 @@ pub struct CalibrationSettings {
     pub measurement_frame: FrameMode,
     /// The marker point.
     pub marker: FrameMode,
+    /// Largest angle correction (rad) a fit may give a kinematic parameter before it is
+    /// refused as diverged (`max_angle_correction_deg`, default [`DEFAULT_MAX_ANGLE_CORRECTION_DEG`]).
+    pub max_angle_correction: f64,
+    /// Largest length correction (mm) a fit may give a kinematic or marker parameter before it
+    /// is refused as diverged (`max_length_correction_mm`, default
+    /// [`DEFAULT_LENGTH_CORRECTION_SHARE`] of the reach).
+    pub max_length_correction_mm: f64,
 }
+
+/// The largest length (mm) a rig file may state: 100 m. Nothing larger is an arm or a table,
+/// and lengths near the float range overflow every later computation.
+pub const MAX_LENGTH_MM: f64 = 100_000.0;
+
+/// Default largest angle correction of a fit (deg): a quarter turn. Joint offsets and twists of
+/// a built arm are off by hundredths to tenths of a degree, yet a parameter the data barely
+/// determine may move far (the TIAGo Pro's wrist offset fits at +50° with a free marker); a
+/// fit that describes a joint half a turn round (θ ±180° with its link negated) or a full turn
+/// (360°), or one that chased a gross row, is beyond it.
+pub const DEFAULT_MAX_ANGLE_CORRECTION_DEG: f64 = 90.0;
+
+/// Default largest length correction of a fit, as a share of the arm's reach
+/// ([`Rig::reach_mm`]): a tenth (about 130 mm on the RV-M2, whose errors are tenths of a mm).
+pub const DEFAULT_LENGTH_CORRECTION_SHARE: f64 = 0.1;
 
 /// The x-y-z table with the touch panel on its z arm (seed 000 section 7).
 #[derive(Debug, Clone, PartialEq)]
@@ -290,6 +319,10 @@ struct RawCalibration {
     measurement_frame: FrameMode,
     #[serde(default)]
     marker: FrameMode,
+    #[serde(default)]
+    max_angle_correction_deg: Option<f64>,
+    #[serde(default)]
+    max_length_correction_mm: Option<f64>,
 }
 
 #[derive(Debug, Deserialize, Default, Clone, Copy, PartialEq, Eq)]
@@ -384,12 +417,52 @@ impl Rig {
         Ok(())
     }
 
+    /// An upper bound on the distance (mm) of the measured point from the world origin over
+    /// every pose: the sum of the chain's translations (base, links with their prismatic
+    /// travel, tool, marker). The scale against which absurd values are judged.
+    pub fn reach_mm(&self) -> f64 {
+        chain_reach_mm(&self.chain)
+    }
+
     /// The joints that move during calibration (0-based).
     pub fn moving_joints(&self) -> Vec<usize> {
         (0..self.calibration.held.len())
             .filter(|&j| self.calibration.held[j].is_none())
             .collect()
     }
+}
+
+/// [`Rig::reach_mm`] of a chain.
+pub fn chain_reach_mm(chain: &SerialChain) -> f64 {
+    use crate::kinematics::{ErrorParams, Robot};
+    let transform = |t: &Transform| match t {
+        Transform::FivePar(l) => l.a.abs() + l.d.abs(),
+        Transform::Pose(p) => p.translation.vector.norm(),
+    };
+    let links: f64 = chain
+        .links()
+        .iter()
+        .zip(chain.joints())
+        .map(|(l, j)| {
+            let travel = match j.kind {
+                JointKind::Prismatic => j.min.abs().max(j.max.abs()),
+                JointKind::Revolute => 0.0,
+            };
+            l.a.abs() + l.d.abs() + travel
+        })
+        .sum();
+    // The marker in the tool frame: the measured point seen from the tool pose.
+    let e = ErrorParams::zeros(chain.layout());
+    let q = vec![0.0; chain.dof()];
+    let marker = (chain.tool_pose(&q, &e).inverse()
+        * nalgebra::Point3::from(chain.position(&q, &e)))
+    .coords
+    .norm();
+    chain.frame().translation.vector.norm()
+        + transform(chain.base())
+        + links
+        + transform(chain.tool())
+        + marker
 }
 
 struct Validator {
@@ -411,6 +484,20 @@ impl Validator {
         } else {
             Err(self.invalid(key, "must be a finite number"))
         }
+    }
+
+    /// A finite length within [`MAX_LENGTH_MM`].
+    fn length(&self, key: &str, v: f64) -> Result<f64, RigError> {
+        self.finite(key, v)?;
+        if v.abs() > MAX_LENGTH_MM {
+            return Err(self.invalid(
+                key,
+                format!(
+                    "{v:e} mm is beyond the {MAX_LENGTH_MM:.0} mm (100 m) any arm or table spans: check the value and its unit (millimetres)"
+                ),
+            ));
+        }
+        Ok(v)
     }
 
     fn rig(&self, raw: RawRig) -> Result<Rig, RigError> {
@@ -440,13 +527,14 @@ impl Validator {
         let marker = match raw.robot.marker_mm {
             Some(m) => {
                 for (k, v) in m.iter().enumerate() {
-                    self.finite(&format!("robot.marker_mm[{k}]"), *v)?;
+                    self.length(&format!("robot.marker_mm[{k}]"), *v)?;
                 }
                 Vector3::from(m)
             }
             None => Vector3::zeros(),
         };
         let chain = SerialChain::new(joints, base, links, tool, Isometry3::identity(), marker);
+        self.nest_pose(raw.devices.as_ref(), &chain)?;
         let calibration = self.calibration(&raw.calibration, &chain)?;
         let instrument = self.instrument(&raw.instrument)?;
         let spherical_bounds = self.workspace(&raw.workspace)?;
@@ -477,8 +565,8 @@ impl Validator {
                     return Err(self.invalid(key("mass_kg"), "must be a finite mass ≥ 0"));
                 }
                 let c = com.unwrap_or([0.0; 3]);
-                if c.iter().any(|v| !v.is_finite()) {
-                    return Err(self.invalid(key("com_mm"), "must be finite"));
+                for v in c {
+                    self.length(&key("com_mm"), v)?;
                 }
                 Ok(Some(LinkMass {
                     kg,
@@ -492,8 +580,8 @@ impl Validator {
         let key = |k: &str| format!("robot.joints[{i}].{k}");
         let link = LinkParams {
             theta: self.finite(&key("theta_deg"), j.theta_deg)?.to_radians(),
-            d: self.finite(&key("d_mm"), j.d_mm)?,
-            a: self.finite(&key("a_mm"), j.a_mm)?,
+            d: self.length(&key("d_mm"), j.d_mm)?,
+            a: self.length(&key("a_mm"), j.a_mm)?,
             alpha: self.finite(&key("alpha_deg"), j.alpha_deg)?.to_radians(),
             beta: self.finite(&key("beta_deg"), j.beta_deg)?.to_radians(),
         };
@@ -518,6 +606,11 @@ impl Validator {
         if !(limits[0].is_finite() && limits[1].is_finite() && limits[0] < limits[1]) {
             return Err(self.invalid(key(field), "needs finite [min, max] with min < max"));
         }
+        if j.kind == JointKind::Prismatic {
+            for v in limits {
+                self.length(&key(field), v)?;
+            }
+        }
         if j.name.trim().is_empty() {
             return Err(self.invalid(key("name"), "must not be empty"));
         }
@@ -541,10 +634,11 @@ impl Validator {
         match (five, pose, matrix) {
             (_, false, false) => {
                 let g = |v: Option<f64>, k: &str| self.finite(&format!("{key}.{k}"), v.unwrap_or(0.0));
+                let l = |v: Option<f64>, k: &str| self.length(&format!("{key}.{k}"), v.unwrap_or(0.0));
                 Ok(Transform::FivePar(LinkParams {
                     theta: g(f.theta_deg, "theta_deg")?.to_radians(),
-                    d: g(f.d_mm, "d_mm")?,
-                    a: g(f.a_mm, "a_mm")?,
+                    d: l(f.d_mm, "d_mm")?,
+                    a: l(f.a_mm, "a_mm")?,
                     alpha: g(f.alpha_deg, "alpha_deg")?.to_radians(),
                     beta: g(f.beta_deg, "beta_deg")?.to_radians(),
                 }))
@@ -554,6 +648,9 @@ impl Validator {
                 let rpy = f.rpy_deg.unwrap_or([0.0; 3]);
                 if xyz.iter().chain(&rpy).any(|v| !v.is_finite()) {
                     return Err(self.invalid(key, "xyz_mm and rpy_deg must be finite"));
+                }
+                for v in xyz {
+                    self.length(&format!("{key}.xyz_mm"), v)?;
                 }
                 Ok(Transform::Pose(pose_from_xyz_rpy(xyz, rpy)))
             }
@@ -572,6 +669,9 @@ impl Validator {
         if m.iter().flatten().any(|v| !v.is_finite()) {
             return Err(self.invalid(key, "must hold finite numbers"));
         }
+        for row in &m[..3] {
+            self.length(key, row[3])?;
+        }
         if m[3] != [0.0, 0.0, 0.0, 1.0] {
             return Err(self.invalid(
                 key,
@@ -588,7 +688,9 @@ impl Validator {
                 ),
             ));
         }
-        let rot = UnitQuaternion::from_matrix(&r);
+        // Read straight off the orthonormal columns: `UnitQuaternion::from_matrix` iterates from
+        // the identity and stalls short of a half turn (a frame turned 180° came out slightly off).
+        let rot = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r));
         Ok(Isometry3::from_parts(
             Translation3::new(m[0][3], m[1][3], m[2][3]),
             rot,
@@ -638,12 +740,80 @@ impl Validator {
             };
             basis_priority.push(id);
         }
+        let max_angle_correction = match c.max_angle_correction_deg {
+            Some(v) => self.positive("calibration.max_angle_correction_deg", v)?,
+            None => DEFAULT_MAX_ANGLE_CORRECTION_DEG,
+        }
+        .to_radians();
+        let max_length_correction_mm = match c.max_length_correction_mm {
+            Some(v) => self.length(
+                "calibration.max_length_correction_mm",
+                self.positive("calibration.max_length_correction_mm", v)?,
+            )?,
+            None => DEFAULT_LENGTH_CORRECTION_SHARE * chain_reach_mm(chain),
+        };
         Ok(CalibrationSettings {
             held,
             basis_priority,
             measurement_frame: c.measurement_frame,
             marker: c.marker,
+            max_angle_correction,
+            max_length_correction_mm,
         })
+    }
+
+    fn positive(&self, key: &str, v: f64) -> Result<f64, RigError> {
+        if v.is_finite() && v > 0.0 {
+            Ok(v)
+        } else {
+            Err(self.invalid(key, "must be a positive number"))
+        }
+    }
+
+    /// The arm's nest pose (`[devices.arm] nest_deg`, where the arm stands after homing), when
+    /// the rig file gives one value per joint, must lie within the joint limits. Its other
+    /// checks (count, driver) are the devices layer's.
+    fn nest_pose(
+        &self,
+        devices: Option<&toml::Table>,
+        chain: &SerialChain,
+    ) -> Result<(), RigError> {
+        use crate::kinematics::Robot;
+        let Some(nest) = devices
+            .and_then(|d| d.get("arm"))
+            .and_then(|a| a.get("nest_deg"))
+            .and_then(toml::Value::as_array)
+        else {
+            return Ok(());
+        };
+        let values: Option<Vec<f64>> = nest
+            .iter()
+            .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+            .collect();
+        let joints = chain.joints();
+        let Some(values) = values.filter(|v| v.len() == joints.len()) else {
+            return Ok(());
+        };
+        for (k, (spec, &v)) in joints.iter().zip(&values).enumerate() {
+            let q = spec.kind.from_file_units(v);
+            if !spec.within(q) {
+                let unit = match spec.kind {
+                    JointKind::Revolute => "°",
+                    JointKind::Prismatic => " mm",
+                };
+                return Err(self.invalid(
+                    format!("devices.arm.nest_deg[{k}]"),
+                    format!(
+                        "joint {} ({}) stands at {v}{unit} in the nest pose, outside its limits [{:.2}{unit}, {:.2}{unit}]: correct the nest pose or the limits",
+                        k + 1,
+                        spec.name,
+                        spec.kind.to_file_units(spec.min),
+                        spec.kind.to_file_units(spec.max),
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     fn workspace(&self, w: &RawWorkspace) -> Result<Option<[[f64; 2]; 3]>, RigError> {
@@ -695,6 +865,13 @@ impl Validator {
                     );
                 }
                 let offset = need(i.table_to_world_mm, "table_to_world_mm")?;
+                for (key, v) in travel
+                    .iter()
+                    .map(|v| ("instrument.table_travel_mm", *v))
+                    .chain(offset.iter().map(|v| ("instrument.table_to_world_mm", *v)))
+                {
+                    self.length(key, v)?;
+                }
                 let accuracy = i.table_accuracy_mm.unwrap_or(0.02);
                 if !(accuracy.is_finite() && accuracy >= 0.0) {
                     return Err(

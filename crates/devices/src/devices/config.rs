@@ -54,6 +54,10 @@ pub struct DevicesConfig {
     pub contact: ContactConfig,
     /// The session's procedure with a point sensor.
     pub sensor: SensorConfig,
+    /// A rehearsal only: the Unix socket of the simulated world behind emulators served on
+    /// pseudo-terminals (`rigcal sim-device rig --pty --write-rig` writes it), through which
+    /// the session's hook reaches that world. Never set on a real rig.
+    pub world: Option<String>,
 }
 
 /// `[devices.contact]`: the thresholds of the session's contact procedure (via pose, travel,

@@ -10,13 +10,18 @@
 //! stops the table at once instead of after the timeout. (On real time the panel and the table
 //! answer from their own threads; the hand-over adds microseconds to the latency the speed
 //! rule allows for, a negligible overshoot at approach speeds.)
+//!
+//! Two ways a reading comes later than its latency shows are caught there too: a touch already
+//! waiting when the wait begins (it came while a slow or repeated exchange was starting the
+//! move) has its latency counted from the panel's clear, and a packet the panel dropped during
+//! the wait (bad checksum, out of range; the first touch may have been it) costs the contact.
 
 use std::time::Duration;
 
 use crate::devices::actor::DeviceActor;
 use crate::devices::pace::Pace;
 use crate::devices::supervision::Alarm;
-use crate::devices::traits::{DeviceError, Panel, Table, Touch};
+use crate::devices::traits::{DeviceError, DeviceName, Panel, PanelStats, Table, Touch};
 
 /// Timeout of the device exchanges around a contact.
 const IO: Duration = Duration::from_secs(1);
@@ -39,6 +44,13 @@ pub struct Contact {
     pub table_mm: [f64; 3],
     /// The touch.
     pub touch: Touch,
+    /// How long the table's position took to come once the touch was seen (request to
+    /// answer, on the devices' clock): the part of the overshoot the bus adds. A touch that
+    /// was already waiting when [`approach`] began to wait for it (it came while the move was
+    /// being started) counts from the panel's clear before the move, the earliest it can have
+    /// come: its true latency is unknown and at most that. `None` where it was not measured
+    /// ([`measure_contact`] has no clock).
+    pub read_latency: Option<Duration>,
 }
 
 impl Contact {
@@ -73,7 +85,11 @@ pub fn measure_contact(
         Ok(touch) => {
             let table_mm = table.position(io)?;
             table.halt(io)?;
-            Ok(Contact { table_mm, touch })
+            Ok(Contact {
+                table_mm,
+                touch,
+                read_latency: None,
+            })
         }
         Err(DeviceError::Timeout { .. }) => {
             let reached = table.halt(io).ok();
@@ -107,7 +123,12 @@ pub struct Approach {
 
 /// How the wait for a touch ended.
 enum Ended {
-    Touch(Touch),
+    /// A touch, seen as it came — or found waiting when the wait began, with the earliest
+    /// moment it can have come (the panel's clear): the move is started with several exchanges
+    /// on the bus, and one slow or repeated (a lost frame costs an SDO timeout) lets the table
+    /// reach the pin before the wait begins. Such a touch's reading is as late as the time
+    /// since then, for all anyone knows, and its latency is counted from there.
+    Touch(Touch, Option<Duration>),
     Failed(DeviceError),
     TimedOut,
 }
@@ -125,25 +146,40 @@ pub async fn approach(
     a: &Approach,
 ) -> Result<Contact, DeviceError> {
     panel.run(IO, |p| p.clear()).await?;
+    let cleared = pace.now();
+    let before = panel.run(IO, |p| Ok(p.stats())).await?;
     let speed = a.speed_mm_s;
     table.run(IO, move |t| t.set_speed(speed, IO)).await?;
     let target = [a.xy_mm[0], a.xy_mm[1], a.z_to_mm];
     table.run(IO, move |t| t.start_move(target, IO)).await?;
     let deadline = pace.now() + a.timeout;
-    let ended = tokio::select! {
-        biased;
-        e = alarm.raised() => Ended::Failed(e),
-        t = first_touch(panel, pace, deadline) => match t {
-            Ok(t) => Ended::Touch(t),
-            Err(e) => Ended::Failed(e),
+    let ended = match panel.run(IO, |p| p.poll_touch(Duration::ZERO)).await? {
+        // Already there: the touch came while the move was being started (see `Ended`).
+        Some(t) => Ended::Touch(t, Some(cleared)),
+        None => tokio::select! {
+            biased;
+            e = alarm.raised() => Ended::Failed(e),
+            t = first_touch(panel, pace, deadline) => match t {
+                Ok(t) => Ended::Touch(t, None),
+                Err(e) => Ended::Failed(e),
+            },
+            () = pace.until(deadline) => Ended::TimedOut,
         },
-        () = pace.until(deadline) => Ended::TimedOut,
     };
     match ended {
-        Ended::Touch(touch) => {
+        Ended::Touch(touch, came_after) => {
+            let asked = pace.now();
             let table_mm = table.run(IO, |t| t.position(IO)).await?;
+            let since = came_after.unwrap_or(asked);
+            let read_latency = Some(pace.now().saturating_sub(since));
             table.run(IO, |t| t.halt(IO)).await?;
-            Ok(Contact { table_mm, touch })
+            let after = panel.run(IO, |p| Ok(p.stats())).await?;
+            packets_intact(&before, &after)?;
+            Ok(Contact {
+                table_mm,
+                touch,
+                read_latency,
+            })
         }
         Ended::TimedOut => {
             let reached = table.run(IO, |t| t.halt(IO)).await.ok();
@@ -159,6 +195,26 @@ pub async fn approach(
             Err(e)
         }
     }
+}
+
+/// `Err` when the panel dropped a packet (bad checksum, out of range) between `before` and
+/// `after` — during the wait for a touch: the first touch may have been that packet, and the
+/// one taken, a report period (10 ms on a PenMount) later, reads the table that much higher
+/// (0.004 mm at the shipped rig's approach speed, nearly the whole overshoot budget again).
+/// The contact is repeated like any bad reading.
+fn packets_intact(before: &PanelStats, after: &PanelStats) -> Result<(), DeviceError> {
+    let dropped = (after.bad_checksum + after.out_of_range)
+        .saturating_sub(before.bad_checksum + before.out_of_range);
+    if dropped == 0 {
+        return Ok(());
+    }
+    Err(DeviceError::Protocol {
+        device: DeviceName::Panel,
+        request: "touch".into(),
+        detail: format!(
+            "{dropped} packet(s) dropped (bad checksum or out of range) while waiting for the touch: the first touch may have been among them, and a later one reads the table too high"
+        ),
+    })
 }
 
 /// The first touch the panel reports, waited for in slices up to `deadline` (then this waits

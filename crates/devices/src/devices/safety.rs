@@ -91,6 +91,9 @@ impl<A: Arm, R: MoveRule> Arm for GuardedArm<A, R> {
     fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
         self.inner.reset(timeout)
     }
+    fn stop(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
+        self.inner.stop(timeout)
+    }
 }
 
 /// The rule of [`LimitedArm`]: the rig's joint limits, and the controller's Cartesian solutions
@@ -342,6 +345,9 @@ impl<T: Table> Table for LimitedTable<T> {
     }
     fn halt(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         self.inner.halt(timeout)
+    }
+    fn quick_stop(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        self.inner.quick_stop(timeout)
     }
     fn fault_reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
         self.inner.fault_reset(timeout)

@@ -228,6 +228,19 @@ pub enum DeviceError {
         /// Why.
         detail: String,
     },
+    /// A reading came too late to be trusted: while it was on its way the device kept moving
+    /// at the approach speed, further than the rig's overshoot budget allows.
+    #[error("{device}: the reading took {latency:?} after the touch; at the approach speed that is {error_mm:.4} mm of overshoot, more than the budget of {budget_mm} mm ([devices.panel] max_overshoot_mm); the contact is repeated; if it persists check the bus load and the drives' response times")]
+    LateReading {
+        /// The device whose reading was late.
+        device: DeviceName,
+        /// The reading's measured latency (request to answer).
+        latency: Duration,
+        /// The overshoot it causes (mm).
+        error_mm: f64,
+        /// The budget (mm).
+        budget_mm: f64,
+    },
     /// The device is not in a state that allows the call.
     #[error("{device}: not ready: {detail}")]
     NotReady {
@@ -250,7 +263,9 @@ impl DeviceError {
     /// The coarse kind.
     pub fn kind(&self) -> DeviceErrorKind {
         match self {
-            DeviceError::Timeout { .. } => DeviceErrorKind::Timeout,
+            DeviceError::Timeout { .. } | DeviceError::LateReading { .. } => {
+                DeviceErrorKind::Timeout
+            }
             DeviceError::Transport { source, .. } => match source.kind() {
                 crate::transports::TransportErrorKind::Timeout => DeviceErrorKind::Timeout,
                 _ => DeviceErrorKind::Transport,
@@ -280,6 +295,7 @@ impl DeviceError {
     pub fn is_retryable(&self) -> bool {
         match self {
             DeviceError::Timeout { .. }
+            | DeviceError::LateReading { .. }
             | DeviceError::Protocol { .. }
             | DeviceError::MissedTouch { .. } => true,
             DeviceError::Transport { source, .. } => source.is_retryable(),
@@ -376,6 +392,13 @@ pub trait Arm: Send {
     fn status(&mut self, timeout: Duration) -> Result<ArmStatus, DeviceError>;
     /// Clears a position/format error; refuses a hardware error ([`DeviceError::ResetNotSafe`]).
     fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError>;
+    /// A safe stop (the session was asked to stop): sends the controller's stop command if it
+    /// has one, sends no further motion, and waits at most `timeout` for the arm to be at rest.
+    /// True once it is known at rest, false if it may still be finishing a move on its own.
+    /// Default: nothing in progress (the plain calls return at the end of their motion).
+    fn stop(&mut self, _timeout: Duration) -> Result<bool, DeviceError> {
+        Ok(true)
+    }
 }
 
 /// The x-y-z measurement table: the panel centre's position in the table frame (mm).
@@ -410,6 +433,13 @@ pub trait Table: Send {
     fn position(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
     /// Stops every axis where it is; returns the position.
     fn halt(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError>;
+    /// A safe stop (the session was asked to stop, or ends on a fault): every axis stops and
+    /// is left without a set-point that a later command could resume (CiA 402: the quick stop
+    /// command, the drives then *switch on disabled*); returns the position. The next
+    /// [`Table::enable`] brings the drives back. Default: [`Table::halt`].
+    fn quick_stop(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        self.halt(timeout)
+    }
     /// Clears drive faults (rising edge of controlword bit 7) and enables again.
     fn fault_reset(&mut self, timeout: Duration) -> Result<(), DeviceError>;
     /// Bus latency of a position read (from the rig file), for the approach-speed rule.
@@ -458,6 +488,16 @@ pub trait Panel: Send {
             Err(e) => Err(e),
         }
     }
+    /// Waits at most `timeout` for the pin to be seen lifted off the panel: true once the
+    /// last packet received reports no touch (or none since the last [`Panel::clear`] reported
+    /// one), false if the panel still reports a touch. A touched panel keeps reporting for its
+    /// latency after the pin lifts, so a contact's packets can still be on their way when the
+    /// table has left; only after the release packet can none of them follow. Default: true (a
+    /// panel that cannot tell).
+    fn wait_lifted(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
+        let _ = timeout;
+        Ok(true)
+    }
     /// Stream counters (bad packets are counted and dropped, never measured).
     fn stats(&self) -> PanelStats;
     /// The panel's reporting latency (from the rig file), for the approach-speed rule.
@@ -502,6 +542,9 @@ impl<A: Arm + ?Sized> Arm for Box<A> {
     fn reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
         (**self).reset(timeout)
     }
+    fn stop(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
+        (**self).stop(timeout)
+    }
 }
 
 impl<T: Table + ?Sized> Table for Box<T> {
@@ -533,6 +576,9 @@ impl<T: Table + ?Sized> Table for Box<T> {
     fn halt(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
         (**self).halt(timeout)
     }
+    fn quick_stop(&mut self, timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        (**self).quick_stop(timeout)
+    }
     fn fault_reset(&mut self, timeout: Duration) -> Result<(), DeviceError> {
         (**self).fault_reset(timeout)
     }
@@ -547,6 +593,9 @@ impl<T: Table + ?Sized> Table for Box<T> {
 impl<P: Panel + ?Sized> Panel for Box<P> {
     fn clear(&mut self) -> Result<(), DeviceError> {
         (**self).clear()
+    }
+    fn wait_lifted(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
+        (**self).wait_lifted(timeout)
     }
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
         (**self).wait_touch(timeout)

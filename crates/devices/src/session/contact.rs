@@ -11,6 +11,18 @@
 //! after another: a clearance below both heights, the rise after the arm's last move, the
 //! final approach from the back-off.
 //!
+//! Each final contact's reading is timed ([`Contact::read_latency`]): the table kept rising at
+//! the approach speed while its position was on its way, so a reading whose latency-induced
+//! overshoot — approach speed × (panel latency + the reading's latency) — exceeds the rig's
+//! budget (`[devices.panel] max_overshoot_mm`) by more than [`LATENCY_SLACK`] is refused
+//! ([`DeviceError::LateReading`]) and the contact repeated like any bad reading. The speed
+//! rule puts a reading at the rig file's latencies exactly at the budget; the slack takes
+//! the jitter of a real bus (6 ms at the shipped rig's 0.42 mm/s), while drives answering
+//! 20 ms late or more are refused. A touch that came while the approach's move was still
+//! being started (a lost SDO frame costs a 200 ms timeout there) counts as late from the
+//! panel's clear, and a panel packet dropped during the wait costs the contact
+//! ([`approach`](crate::devices::contact::approach)).
+//!
 //! The table keeps ascending z within a pass (the safety wrapper refuses anything lower than
 //! the pass's top minus the retract allowance): a new pass begins with each region, each
 //! registration pose, and wherever the procedure must go lower (counted as an extra pass).
@@ -28,14 +40,58 @@ use rigcal_core::rig::{Instrument, Rig};
 /// Closer than this (mm) to where it should be, the table need not move.
 const AT_TARGET_MM: f64 = 1e-3;
 
+/// How far a final contact's latency-induced overshoot may exceed the budget, as a fraction
+/// of it, before the reading is refused (see the module docs).
+pub(crate) const LATENCY_SLACK: f64 = 0.5;
+
+/// How long past four panel latencies the final approach waits for the locating touch's
+/// release packet before repeating the contact.
+const LIFT_MARGIN: std::time::Duration = std::time::Duration::from_millis(100);
+
+/// The final approach: its speed from the latency rule (conventions §8), and what its readings
+/// are held to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct FinalApproach {
+    /// The approach speed (mm/s).
+    pub speed_mm_s: f64,
+    /// The panel's reporting latency (rig file): the part of the overshoot no reading shows.
+    pub panel_latency: std::time::Duration,
+    /// The overshoot budget (mm).
+    pub budget_mm: f64,
+}
+
+impl FinalApproach {
+    /// The overshoot (mm) of a contact whose position took `read_latency` to come.
+    pub fn overshoot_mm(&self, read_latency: std::time::Duration) -> f64 {
+        self.speed_mm_s * (self.panel_latency + read_latency).as_secs_f64()
+    }
+
+    /// `Err` for a reading too late to be trusted (see the module docs).
+    pub fn check(&self, c: &Contact) -> Result<(), DeviceError> {
+        let Some(latency) = c.read_latency else {
+            return Ok(());
+        };
+        let error_mm = self.overshoot_mm(latency);
+        if error_mm > self.budget_mm * (1.0 + LATENCY_SLACK) {
+            return Err(DeviceError::LateReading {
+                device: DeviceName::Table,
+                latency,
+                error_mm,
+                budget_mm: self.budget_mm,
+            });
+        }
+        Ok(())
+    }
+}
+
 /// The contact procedure's settings and its pass state.
 #[derive(Debug)]
 pub(crate) struct TableContact {
     settings: ContactSettings,
     /// Ordinary table moves (mm/s).
     travel_mm_s: f64,
-    /// The final approach (mm/s): the latency rule's speed.
-    approach_mm_s: f64,
+    /// The final approach: the latency rule's speed and budget.
+    last: FinalApproach,
     /// Top of the table's z travel (mm).
     travel_z: f64,
     /// How far below a pass's top a move may go (mm).
@@ -62,13 +118,13 @@ fn bad_touch(detail: String) -> DeviceError {
 }
 
 impl TableContact {
-    /// `procedure` on `rig` with the final approach at `approach_mm_s`.
-    pub fn new(rig: &Rig, approach_mm_s: f64, procedure: ContactProcedure) -> Self {
+    /// `procedure` on `rig` with the final approach `last`.
+    pub fn new(rig: &Rig, last: FinalApproach, procedure: ContactProcedure) -> Self {
         let cfg = crate::devices::config::DevicesConfig::read(rig);
         TableContact {
             settings: ContactSettings::for_procedure(rig, procedure),
             travel_mm_s: cfg.table.profile_velocity_mm_s,
-            approach_mm_s,
+            last,
             travel_z: match &rig.instrument {
                 Instrument::TablePanel(tp) => tp.travel_mm.z,
                 _ => f64::MAX,
@@ -262,6 +318,21 @@ impl TableContact {
         motion.table_speed(self.travel_mm_s).await?;
         self.start_table(motion, [xy[0], xy[1], back]).await?;
         motion.table_reached().await?;
+        // A touched panel reports for its latency after the pin lifts: only after its release
+        // packet can no packet of the locating touch be taken for the final one.
+        let wait = self.last.panel_latency * 4 + LIFT_MARGIN;
+        if !motion
+            .panel()?
+            .run(IO, move |p| p.wait_lifted(wait))
+            .await?
+        {
+            *pin_on_panel = true;
+            return Err(bad_touch(format!(
+                "the panel still reports the locating touch {} ms after the back-off of {} mm: the pin was not seen lifted",
+                wait.as_millis(),
+                c.backoff_mm
+            )));
+        }
         let from = (first.table_mm[2] - c.standoff_mm).max(back);
         if from > back + AT_TARGET_MM {
             self.start_table(motion, [xy[0], xy[1], from]).await?;
@@ -272,16 +343,19 @@ impl TableContact {
             xy_mm: xy,
             z_from_mm: from,
             z_to_mm: top,
-            speed_mm_s: self.approach_mm_s,
-            timeout: approach_timeout(top - from, self.approach_mm_s),
+            speed_mm_s: self.last.speed_mm_s,
+            timeout: approach_timeout(top - from, self.last.speed_mm_s),
         };
         let fin = motion.contact(&last).await;
         self.raise_top(top);
         let fin = fin?;
         core.table_at = Some(fin.table_mm);
+        self.last.check(&fin)?;
         let du = (fin.touch.u_mm - first.touch.u_mm).abs();
         let dv = (fin.touch.v_mm - first.touch.v_mm).abs();
         if fin.table_mm[2] <= from + c.z_tolerance_mm {
+            // The pin below the standoff: the next attempt starts lower.
+            *pin_on_panel = true;
             return Err(bad_touch(format!(
                 "final touch at its start (z {:.3} mm): the pin was on the panel, the standoff of {} mm below the locating touch too small",
                 fin.table_mm[2], c.standoff_mm
@@ -402,5 +476,52 @@ impl TableContact {
         let at = self.table_to(core, motion, t).await;
         self.pass_top = None;
         at
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::devices::contact::approach_speed;
+    use crate::devices::Touch;
+    use std::time::Duration;
+
+    fn contact(read_latency: Option<Duration>) -> Contact {
+        Contact {
+            table_mm: [0.0; 3],
+            touch: Touch {
+                counts: [0, 0],
+                u_mm: 0.0,
+                v_mm: 0.0,
+            },
+            read_latency,
+        }
+    }
+
+    #[test]
+    fn a_reading_at_the_rigs_latencies_passes_and_a_late_one_is_refused() {
+        // The shipped rig: panel 10 ms, bus 2 ms, budget 0.005 mm: 0.42 mm/s.
+        let (panel, bus) = (Duration::from_millis(10), Duration::from_millis(2));
+        let last = FinalApproach {
+            speed_mm_s: approach_speed(panel, bus, 0.005),
+            panel_latency: panel,
+            budget_mm: 0.005,
+        };
+        assert!((last.overshoot_mm(bus) - 0.005).abs() < 1e-12);
+        assert!(last.check(&contact(Some(bus))).is_ok());
+        assert!(last.check(&contact(Some(Duration::from_millis(7)))).is_ok());
+        assert!(last.check(&contact(None)).is_ok());
+        let e = last
+            .check(&contact(Some(Duration::from_millis(20))))
+            .unwrap_err();
+        match e {
+            DeviceError::LateReading { error_mm, .. } => {
+                assert!((error_mm - 0.0125).abs() < 1e-9, "{error_mm}")
+            }
+            other => panic!("{other}"),
+        }
+        assert!(last
+            .check(&contact(Some(Duration::from_millis(9))))
+            .is_err());
     }
 }

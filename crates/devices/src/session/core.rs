@@ -42,7 +42,7 @@ pub(crate) struct Registration {
     pub info: Option<RegistrationInfo>,
 }
 
-/// The session core (see the module docs). Thirteen fields: what a point's rows and the
+/// The session core (see the module docs). Fifteen fields: what a point's rows and the
 /// journal need of the session (rig, options, recording, time base, registration, where the
 /// devices stand, the report), held in one place so the procedures borrow one thing.
 pub(crate) struct SessionCore<'a> {
@@ -62,6 +62,12 @@ pub(crate) struct SessionCore<'a> {
     pub arm_q: Option<Vec<f64>>,
     pub table_at: Option<[f64; 3]>,
     pub report: SessionReport,
+    /// Points given up in a row for a device's silence (a timeout, a missed touch, a late
+    /// reading): the device-loss rule of [`crate::session::recovery`] counts them.
+    pub silent_points: u32,
+    /// The recording has the `latency_ms` column (a table-and-panel session's, since the
+    /// column was added; a resumed older recording keeps its own columns).
+    pub latency_column: bool,
 }
 
 impl<'a> SessionCore<'a> {
@@ -91,6 +97,8 @@ impl<'a> SessionCore<'a> {
             arm_q: None,
             table_at: None,
             report: SessionReport::default(),
+            silent_points: 0,
+            latency_column: false,
         }
     }
 

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use crate::devices::DeviceError;
+use crate::devices::{DeviceError, DeviceName};
 use crate::session::journal::JournalError;
 use crate::session::procedure::ContactProcedure;
 use rigcal_core::recording::RecordingError;
@@ -19,6 +19,29 @@ pub enum SessionError {
         stage: String,
         /// The device's error.
         source: DeviceError,
+    },
+    /// The session was asked to stop ([`StopRequest`](crate::session::StopRequest): SIGINT,
+    /// SIGTERM) and stopped safely: the point in progress abandoned, the table's drives
+    /// quick-stopped, the arm stopped, the journal at the last finished point.
+    #[error("stopped on {reason} {during}: {devices}; every finished point is saved: run the same command with --resume to continue (the interrupted point is measured again)")]
+    Stopped {
+        /// What asked for the stop (`SIGINT`, `SIGTERM`, …).
+        reason: String,
+        /// What the session was doing.
+        during: String,
+        /// What the devices did (quick-stopped where, at rest or not).
+        devices: String,
+    },
+    /// A device stopped answering (the device-loss rule of the session's recovery): the session
+    /// ends as a fault, resumable, rather than giving up every remaining point.
+    #[error("{device} stopped answering ({stage}): {detail}; the session stopped with every finished point saved (the point in progress is measured again): check the {device}'s power, cable and bus, then run again with --resume")]
+    DeviceLost {
+        /// The device.
+        device: DeviceName,
+        /// What the session was doing.
+        stage: String,
+        /// What was seen.
+        detail: String,
     },
     /// The recording could not be written.
     #[error(transparent)]

@@ -13,7 +13,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use rigcal_core::recording::RegistrationInfo;
+use rigcal_core::kinematics::JointSpec;
+use rigcal_core::recording::{Recording, RegistrationInfo};
 
 /// The journal's file name in a session directory.
 pub const JOURNAL_FILE: &str = "journal.json";
@@ -36,6 +37,14 @@ pub enum JournalError {
         /// The file.
         path: PathBuf,
         /// The parser's message.
+        reason: String,
+    },
+    /// The recording does not hold what the journal committed (checked before a resume).
+    #[error("{}: {reason}; the session cannot resume safely: restore the recording (or its journal) from a backup, or start a new session in another directory", csv.display())]
+    Disagrees {
+        /// The recording.
+        csv: PathBuf,
+        /// What differs.
         reason: String,
     },
 }
@@ -123,6 +132,73 @@ impl Journal {
             reason: e.to_string(),
         })
     }
+}
+
+impl Journal {
+    /// Checks that the recording `csv` holds what this journal committed, before a resume
+    /// cuts it back to [`Journal::csv_bytes`] and appends to it: at least that many bytes (a
+    /// shorter file was cut inside committed rows, or the journal claims rows that were never
+    /// written), ending at a line end, every committed row complete and readable with these
+    /// `joints`, [`Journal::rows`] of them, the last one numbered just before
+    /// [`Journal::next_seq`].
+    pub fn check_recording(&self, csv: &Path, joints: &[JointSpec]) -> Result<(), JournalError> {
+        let disagrees = |reason: String| JournalError::Disagrees {
+            csv: csv.to_path_buf(),
+            reason,
+        };
+        let io = |source| JournalError::Io {
+            path: csv.to_path_buf(),
+            source,
+        };
+        let len = std::fs::metadata(csv).map_err(io)?.len();
+        if len < self.csv_bytes {
+            return Err(disagrees(format!(
+                "the file holds {len} bytes but the journal committed {} ({} bytes of measured rows are missing: the file was cut inside its committed rows, or the journal claims rows that were never written)",
+                self.csv_bytes,
+                self.csv_bytes - len
+            )));
+        }
+        if !ends_a_line(csv, self.csv_bytes).map_err(io)? {
+            return Err(disagrees(format!(
+                "the journal's {} committed bytes end inside a row (a committed row is torn)",
+                self.csv_bytes
+            )));
+        }
+        let rec = Recording::read_prefix(csv, self.csv_bytes, joints).map_err(|e| {
+            disagrees(format!(
+                "a committed row does not read ({e}): it was torn or edited"
+            ))
+        })?;
+        let held = rec.rows.len() as u64;
+        if held != self.rows {
+            return Err(disagrees(format!(
+                "the journal counts {} committed rows, the file's first {} bytes hold {held}",
+                self.rows, self.csv_bytes
+            )));
+        }
+        if let Some(last) = rec.rows.last() {
+            if last.seq + 1 != self.next_seq {
+                return Err(disagrees(format!(
+                    "the last committed row has seq {}, the journal continues at seq {}",
+                    last.seq, self.next_seq
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Whether the first `len` bytes of the file end with a line end (the header's at least).
+fn ends_a_line(path: &Path, len: u64) -> std::io::Result<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    if len == 0 {
+        return Ok(false);
+    }
+    let mut f = std::fs::File::open(path)?;
+    f.seek(SeekFrom::Start(len - 1))?;
+    let mut last = [0u8; 1];
+    f.read_exact(&mut last)?;
+    Ok(last[0] == b'\n')
 }
 
 #[cfg(test)]

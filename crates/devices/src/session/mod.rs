@@ -17,13 +17,16 @@
 //! - [`error`], [`options`], [`report`]: what stops a session, how to run one, what it did —
 //!   each in its own file, so that the steps of a session import them and not each other.
 //! - [`setup`]: a session set up as `rigcal session` does (its directory, its `plan.csv`, the
-//!   estimate, the options); [`text`]: what `rigcal plan` and `rigcal session` print.
+//!   estimate, the options); [`lock`]: one writer per session directory; [`inputs`]: what a
+//!   resume must be given again; [`text`]: what `rigcal plan` and `rigcal session` print.
 
 pub mod compare;
 mod contact;
 mod core;
 pub mod error;
+pub mod inputs;
 pub mod journal;
+pub mod lock;
 pub mod measurer;
 mod motion;
 pub mod options;
@@ -42,11 +45,13 @@ pub mod text;
 
 pub use compare::{compare, plan_variant, saving_pct, PlannedVariant, COMPARED};
 pub use error::SessionError;
+pub use inputs::ResumeCheck;
 pub use journal::{Journal, JournalError};
+pub use lock::{LockError, SessionLock, LOCK_FILE};
 pub use measurer::{
     batch_order, is_division_region, recorded_requests, RecordedRequest, SessionMeasurer,
 };
-pub use options::SessionOptions;
+pub use options::{SessionOptions, StopRequest};
 pub use plan::{
     estimate, plan, read_plan, registration_candidates, registration_points, write_plan,
     z_window_mm, ContactSettings, Ordering, Plan, PlanError, PlanOptions, PlannedPoint,
@@ -57,6 +62,6 @@ pub use progress::{Progress, ProgressSink};
 pub use report::SessionReport;
 pub use run::{run_session, Session};
 pub use sensor::SensorSettings;
-pub use setup::{PlanSource, SessionSetup, SetupError, PLAN_FILE};
+pub use setup::{OwnedDir, PlanSource, SessionSetup, SetupError, PLAN_FILE};
 pub use speeds::{MoveTime, RigSpeeds};
 pub use text::comparison_text;

@@ -4,6 +4,9 @@
 //! the arm no longer waited for (the controller has no stop: its driver reads the abandoned
 //! move's reply before the next command).
 //!
+//! A safe stop ([`Brakes`]) quick-stops the table's drives and stops the arm, from handles
+//! held apart from the session's state.
+//!
 //! How the waits run on each clock is [`crate::devices::pace`]'s business: inline and in bounded
 //! slices on the virtual clock (deterministic), on the devices' own threads on real time.
 
@@ -17,11 +20,15 @@ use crate::devices::supervision::Alarm;
 use crate::devices::{
     Arm, DeviceError, DeviceName, InstrumentDevices, Panel, PointSensor, RigDevices, Table,
 };
+use crate::session::options::StopRequest;
 
 /// Timeout of a single device exchange.
 pub(crate) const IO: Duration = Duration::from_secs(2);
 /// Timeout of an arm or table move.
 pub(crate) const MOVE: Duration = Duration::from_secs(120);
+/// How long a safe stop waits for the arm to finish the move it is in (the Movemaster has no
+/// stop command; an RV-M2 move at the session's speed takes a few seconds).
+const ARM_AT_REST: Duration = Duration::from_secs(10);
 /// While the arm moves beside it, the table is looked at this often (its drives' faults and
 /// heartbeats are supervised besides); polled closely once the arm has arrived, when its end
 /// is what the session waits for.
@@ -42,6 +49,8 @@ pub(crate) struct Motion {
     instrument: Instrument,
     pub pace: Pace,
     pub alarm: Alarm,
+    /// Once raised, no further motion is sent (the session then stops safely).
+    pub stop: StopRequest,
 }
 
 fn no_table() -> DeviceError {
@@ -72,6 +81,7 @@ impl Motion {
             instrument,
             pace,
             alarm: Alarm::never(),
+            stop: StopRequest::new(),
         })
     }
 
@@ -142,6 +152,7 @@ impl Motion {
 
     /// Starts a table move to `target` (mm).
     pub async fn start_table(&self, target: [f64; 3]) -> Result<(), DeviceError> {
+        self.not_stopping(DeviceName::Table)?;
         self.table()?
             .run(IO, move |t| t.start_move(target, IO))
             .await
@@ -194,6 +205,7 @@ impl Motion {
 
     /// One contact (see [`approach`]).
     pub async fn contact(&self, a: &Approach) -> Result<Contact, DeviceError> {
+        self.not_stopping(DeviceName::Table)?;
         let (table, panel) = (self.table()?, self.panel()?);
         approach(table, panel, &self.alarm, &self.pace, a).await
     }
@@ -203,8 +215,21 @@ impl Motion {
         self.sensor()?.run(timeout, move |s| s.read(timeout)).await
     }
 
+    /// `Err` once a stop was requested: no motion goes out after it (the session's stop
+    /// branch then takes over at its next look).
+    pub fn not_stopping(&self, device: DeviceName) -> Result<(), DeviceError> {
+        match self.stop.reason() {
+            None => Ok(()),
+            Some(why) => Err(DeviceError::NotReady {
+                device,
+                detail: format!("no motion sent: the session is stopping ({why})"),
+            }),
+        }
+    }
+
     /// The arm's move in slices (unguarded).
     async fn arm_motion(&self, q: Vec<f64>) -> Result<Vec<f64>, DeviceError> {
+        self.not_stopping(DeviceName::Arm)?;
         let done = self.arm.run(MOVE, move |a| a.start_move(&q, MOVE)).await?;
         loop {
             let slice = self.pace.next_slice();
@@ -264,6 +289,53 @@ impl Motion {
             }
             self.pace.yield_now().await;
         }
+    }
+}
+
+/// What a safe stop needs of the devices: clones of their handles, taken before anything can
+/// go wrong, so that a stop can be made whatever state the session is in (bringing the rig up,
+/// registering, measuring).
+#[derive(Clone)]
+pub(crate) struct Brakes {
+    arm: DeviceActor<dyn Arm>,
+    table: Option<DeviceActor<dyn Table>>,
+}
+
+impl Brakes {
+    /// The brakes of `motion`'s devices.
+    pub fn of(motion: &Motion) -> Self {
+        Brakes {
+            arm: motion.arm.clone(),
+            table: motion.table().ok().cloned(),
+        }
+    }
+
+    /// The safe stop: the table's drives quick-stopped first (theirs is the set-point that
+    /// would otherwise stay active), then the arm stopped; what each did, for the message.
+    pub async fn apply(&self) -> String {
+        let mut said = Vec::new();
+        if let Some(table) = &self.table {
+            said.push(match table.run(IO, |t| t.quick_stop(IO)).await {
+                Ok(p) => format!(
+                    "the table's drives quick-stopped at ({:.3}, {:.3}, {:.3}) mm",
+                    p[0], p[1], p[2]
+                ),
+                Err(e) => {
+                    tracing::error!("table: quick stop not confirmed: {e}");
+                    format!("the table did NOT confirm its quick stop ({e}): check that it stands still, or switch its drives off")
+                }
+            });
+        }
+        said.push(
+            match self.arm.run(ARM_AT_REST, |a| a.stop(ARM_AT_REST)).await {
+                Ok(true) => "the arm at rest".to_string(),
+                Ok(false) => format!(
+                    "the arm still finishing its last move after {ARM_AT_REST:?} (its controller has no stop command: use the drive unit's STOP switch if it must stop at once)"
+                ),
+                Err(e) => format!("the arm did not confirm it is at rest ({e})"),
+            },
+        );
+        said.join(", ")
     }
 }
 

@@ -1152,6 +1152,22 @@ pub fn read_plan(path: &Path, rig: &Rig) -> Result<Vec<PlannedPoint>, PlanError>
         let q = (0..joints.len())
             .map(|j| num(at[2 + j]).map(|v| joints[j].kind.from_file_units(v)))
             .collect::<Result<Vec<_>, _>>()?;
+        if let Some((j, v)) = q.iter().enumerate().find(|(j, v)| !joints[*j].within(**v)) {
+            let spec = &joints[j];
+            let unit = |x: f64| spec.kind.to_file_units(x);
+            return Err(bad(
+                i + 1,
+                format!(
+                    "joint {} at {:.4} is outside its limits [{:.4}, {:.4}] ({}): the plan was \
+                     made for another rig or edited; make it again with `rigcal plan`",
+                    spec.name,
+                    unit(*v),
+                    unit(spec.min),
+                    unit(spec.max),
+                    spec.kind.unit()
+                ),
+            ));
+        }
         let t0 = 2 + joints.len();
         let t = [num(at[t0])?, num(at[t0 + 1])?, num(at[t0 + 2])?];
         out.push(PlannedPoint {

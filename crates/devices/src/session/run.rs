@@ -14,11 +14,21 @@
 //! - `recovery`: retry, give the point up, or stop;
 //! - `registration`: the table-to-world registration step.
 //!
+//! A stop request ([`SessionOptions::stop`]: SIGINT, SIGTERM) is looked at between any two
+//! device calls: the session abandons what it is doing, quick-stops the table's drives, stops
+//! the arm (`motion::Brakes`), leaves the journal at the last finished point and ends with
+//! [`SessionError::Stopped`]; a device that stops answering ends it with
+//! [`SessionError::DeviceLost`] (the rule is in `recovery`). Both resume with `--resume`.
+//!
 //! A point the rig cannot measure, or one still failing after the last attempt, becomes a
 //! `skipped: REASON` row. Rows (conventions §6): `via` for the pre-approach and registration
-//! moves, `ok` for a measurement, `skipped: …` for a point given up. A dry run's measurement
-//! draws are keyed by (seed, seq, attempt) through the rig's hook, which the session cannot
-//! tell from the real rig's.
+//! moves, `ok` for a measurement, `skipped: …` for a point given up. A table-and-panel
+//! recording has one more column, `latency_ms`: on an `ok` row, how long the table's position
+//! took to come after the touch was seen (request to answer; see
+//! [`Contact::read_latency`](crate::devices::contact::Contact::read_latency)); readers that
+//! do not know it keep and ignore it (recordings.md). A dry run's measurement draws are keyed
+//! by (seed, seq, attempt) through the rig's hook, which the session cannot tell from the real
+//! rig's.
 
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -28,11 +38,11 @@ use nalgebra::Vector3;
 use crate::devices::contact::approach_speed;
 use crate::devices::pace::Pace;
 use crate::devices::{DeviceError, OpenedRig, RigHook};
-use crate::session::contact::TableContact;
+use crate::session::contact::{FinalApproach, TableContact};
 use crate::session::core::{Outcome, SessionCore};
 use crate::session::error::SessionError;
 use crate::session::journal::{Journal, JournalError};
-use crate::session::motion::{Motion, IO, MOVE};
+use crate::session::motion::{Brakes, Motion, IO, MOVE};
 use crate::session::options::SessionOptions;
 use crate::session::plan::PlannedPoint;
 use crate::session::progress::Progress;
@@ -46,6 +56,9 @@ use rigcal_model::identification::Observation;
 
 /// The recording's file name in a session directory.
 pub const CSV_FILE: &str = "measurements.csv";
+
+/// The recording's column for the latency of a contact's position reading (ms).
+pub const LATENCY_COLUMN: &str = "latency_ms";
 
 /// Runs (or resumes) a session over `points` on the rig the factory opened.
 pub fn run_session(
@@ -75,6 +88,7 @@ pub fn run_session(
 pub struct Session<'a> {
     runtime: tokio::runtime::Runtime,
     run: Run<'a>,
+    brakes: Brakes,
     started: Instant,
     next_point: usize,
 }
@@ -119,10 +133,26 @@ impl<'a> Session<'a> {
             .runtime()
             .map_err(SessionError::Runtime)?;
         let motion = Motion::new(devices).map_err(dev("starting the devices"))?;
-        let (run, next_point) = runtime.block_on(Run::open(rig, motion, hook, opts))?;
+        let brakes = Brakes::of(&motion);
+        let stop = opts.stop.clone();
+        let opened = runtime.block_on(async {
+            tokio::select! {
+                biased;
+                why = stop.requested() => Err(why),
+                r = Run::open(rig, motion, hook, opts) => Ok(r),
+            }
+        });
+        let (run, next_point) = match opened.and_then(|r| stop.reason().map_or(Ok(r), Err)) {
+            Ok(r) => r?,
+            Err(reason) => {
+                let during = "while the rig was brought up or registered".to_string();
+                return Err(safe_stop(&runtime, &brakes, reason, during));
+            }
+        };
         Ok(Session {
             runtime,
             run,
+            brakes,
             started,
             next_point,
         })
@@ -152,11 +182,30 @@ impl<'a> Session<'a> {
         p: &PlannedPoint,
         last: bool,
     ) -> Result<Option<Observation>, SessionError> {
+        let stop = self.run.core.opts.stop.clone();
+        let run = &mut self.run;
         let measured = self.runtime.block_on(async {
-            let measured = self.run.point(p).await?;
-            self.run.where_the_devices_stand().await?;
-            Ok::<_, SessionError>(measured)
-        })?;
+            tokio::select! {
+                biased;
+                why = stop.requested() => Err(why),
+                r = async {
+                    let measured = run.point(p).await?;
+                    run.where_the_devices_stand().await?;
+                    Ok::<_, SessionError>(measured)
+                } => Ok(r),
+            }
+        });
+        // A stop requested while the point ended (or failed on the refusal to move) is a stop.
+        let measured = match measured.and_then(|r| stop.reason().map_or(Ok(r), Err)) {
+            Ok(r) => r?,
+            Err(reason) => {
+                let during = format!(
+                    "during plan point {} (row seq {})",
+                    p.point, self.run.core.seq
+                );
+                return Err(safe_stop(&self.runtime, &self.brakes, reason, during));
+            }
+        };
         self.next_point += 1;
         let core = &mut self.run.core;
         core.report.points = core.report.points.max(self.next_point);
@@ -174,6 +223,23 @@ impl<'a> Session<'a> {
     }
 }
 
+/// The safe stop after a stop request: the brakes applied, the error that says what they did.
+/// The journal is left as the last finished point committed it.
+fn safe_stop(
+    runtime: &tokio::runtime::Runtime,
+    brakes: &Brakes,
+    reason: String,
+    during: String,
+) -> SessionError {
+    tracing::warn!("{reason}: stopping the session safely ({during})");
+    let devices = runtime.block_on(brakes.apply());
+    SessionError::Stopped {
+        reason,
+        during,
+        devices,
+    }
+}
+
 impl<'a> Run<'a> {
     /// Brings the rig up (arm homed, table enabled and supervised), opens the recording, and
     /// registers — or takes everything back from the journal on a resume. Also returns the
@@ -185,6 +251,7 @@ impl<'a> Run<'a> {
         opts: SessionOptions,
     ) -> Result<(Run<'a>, usize), SessionError> {
         let dir = opts.dir.clone();
+        motion.stop = opts.stop.clone();
         std::fs::create_dir_all(&dir).map_err(|source| SessionError::Io {
             path: dir.clone(),
             source,
@@ -203,8 +270,8 @@ impl<'a> Run<'a> {
             .await
             .map_err(dev("setting the arm speed"))?;
         let procedure = if motion.has_table() {
-            let approach_mm_s = Self::bring_up_table(&mut motion, &cfg).await?;
-            Procedure::Contact(TableContact::new(rig, approach_mm_s, opts.procedure))
+            let last = Self::bring_up_table(&mut motion, &cfg, &opts).await?;
+            Procedure::Contact(TableContact::new(rig, last, opts.procedure))
         } else {
             Procedure::Sensor(SensorProcedure::new(rig))
         };
@@ -233,10 +300,23 @@ impl<'a> Run<'a> {
                 });
             }
         }
-        let writer = open_recording(rig, &csv, journal.as_ref(), opts.fsync)?;
+        // A table-and-panel recording keeps each contact's latency; a resumed one keeps the
+        // columns it was begun with.
+        let latency_column = match &journal {
+            _ if !motion.has_table() => false,
+            None => true,
+            Some(_) => has_column(&csv, LATENCY_COLUMN)?,
+        };
+        let extra = if latency_column {
+            vec![LATENCY_COLUMN.to_string()]
+        } else {
+            Vec::new()
+        };
+        let writer = open_recording(rig, &csv, journal.as_ref(), &extra, opts.fsync)?;
         let clock = std::sync::Arc::clone(motion.pace.clock());
         let resume = opts.resume;
         let mut core = SessionCore::new(rig, opts, hook, clock, writer, csv);
+        core.latency_column = latency_column;
         core.arm_q = motion
             .arm
             .call(IO, |a| a.commanded())
@@ -264,17 +344,28 @@ impl<'a> Run<'a> {
         Ok((run, next_point))
     }
 
-    /// Enables the table, starts supervising its drives, and returns the final approach's
-    /// speed from the latency rule.
+    /// Enables the table (retried like a measuring step: a lost frame must not stop the
+    /// session before it has begun), starts supervising its drives, and returns the final
+    /// approach: its speed from the latency rule and the budget its readings are held to.
     async fn bring_up_table(
         motion: &mut Motion,
         cfg: &crate::devices::config::DevicesConfig,
-    ) -> Result<f64, SessionError> {
+        opts: &SessionOptions,
+    ) -> Result<FinalApproach, SessionError> {
         let table = motion.table().map_err(dev("enabling the table"))?;
-        table
-            .run(IO * 5, |t| t.enable(IO * 5))
-            .await
-            .map_err(dev("enabling the table"))?;
+        let mut attempt = 1u32;
+        loop {
+            match table.run(IO * 5, |t| t.enable(IO * 5)).await {
+                Ok(()) => break,
+                Err(e) if e.is_retryable() && attempt < opts.max_attempts.max(1) => {
+                    tracing::info!("enabling the table again (attempt {}): {e}", attempt + 1);
+                    let backoff = opts.backoff * 2u32.saturating_pow(attempt - 1);
+                    motion.pace.pause(backoff).await;
+                    attempt += 1;
+                }
+                Err(e) => return Err(dev("enabling the table")(e)),
+            }
+        }
         let table_latency = table.call(IO, |t| t.latency()).await;
         let panel = motion.panel().map_err(dev("reading the panel"))?;
         let panel_latency = panel.call(IO, |p| p.latency()).await;
@@ -288,11 +379,11 @@ impl<'a> Run<'a> {
             });
         };
         motion.supervise(Duration::from_millis(u64::from(cfg.table.heartbeat_ms)));
-        Ok(approach_speed(
+        Ok(FinalApproach {
+            speed_mm_s: approach_speed(panel_latency, table_latency, cfg.panel.max_overshoot_mm),
             panel_latency,
-            table_latency,
-            cfg.panel.max_overshoot_mm,
-        ))
+            budget_mm: cfg.panel.max_overshoot_mm,
+        })
     }
 
     /// The registration step with the instrument's procedure.
@@ -382,17 +473,25 @@ impl<'a> Run<'a> {
         };
         let m = match out {
             Outcome::Seen(reading) => {
+                core.silent_points = 0;
                 let mut m = core.row(q, &p.region, Status::Ok);
                 m.position = Some(Vector3::from(reading));
                 m
             }
             Outcome::Measured(c) => {
+                core.silent_points = 0;
                 let t = Vector3::from(c.point_table_mm());
                 let mut m = core.row(q, &p.region, Status::Ok);
                 m.table = Some(t);
                 m.panel_uv = Some([c.touch.u_mm, c.touch.v_mm]);
                 let world = core.registration.world_from_instrument;
                 m.position = Some((world * nalgebra::Point3::from(t)).coords);
+                if core.latency_column {
+                    let ms = c
+                        .read_latency
+                        .map(|l| format!("{:.3}", l.as_secs_f64() * 1e3));
+                    m.extra = vec![ms.unwrap_or_default()];
+                }
                 m
             }
             Outcome::Skipped(reason) => {
@@ -413,11 +512,13 @@ impl<'a> Run<'a> {
     }
 }
 
-/// The recording: created, or (on a resume) cut back to the journal's length and appended to.
+/// The recording: created, or (on a resume) cut back to the journal's length and appended to;
+/// `extra` are its columns after the standard ones.
 fn open_recording(
     rig: &Rig,
     csv: &Path,
     journal: Option<&Journal>,
+    extra: &[String],
     fsync: bool,
 ) -> Result<RecordingWriter, SessionError> {
     let joints = rig.chain.joints();
@@ -432,9 +533,23 @@ fn open_recording(
                 .open(csv)
                 .map_err(io)?;
             f.set_len(j.csv_bytes).map_err(io)?;
-            RecordingWriter::open_append(csv, joints, &[])?.0
+            RecordingWriter::open_append(csv, joints, extra)?.0
         }
-        None => RecordingWriter::create(csv, joints, &[])?,
+        None => RecordingWriter::create(csv, joints, extra)?,
     };
     Ok(writer.sync_each_row(fsync))
+}
+
+/// True when the header of the recording at `csv` names `column`.
+fn has_column(csv: &Path, column: &str) -> Result<bool, SessionError> {
+    use std::io::BufRead;
+    let io = |source| SessionError::Io {
+        path: csv.to_path_buf(),
+        source,
+    };
+    let mut header = String::new();
+    std::io::BufReader::new(std::fs::File::open(csv).map_err(io)?)
+        .read_line(&mut header)
+        .map_err(io)?;
+    Ok(header.trim_end().split(',').any(|c| c == column))
 }

@@ -72,7 +72,7 @@ fn is_transmit_ack(m: &SlcanMessage) -> bool {
 }
 
 impl<T: ByteTransport> SlcanBus<T> {
-    /// Discards stale input, sets the bit rate and opens the channel.
+    /// Discards stale input, closes a channel left open, sets the bit rate and opens the channel.
     pub fn open(io: T, config: SlcanBusConfig) -> Result<Self, TransportError> {
         let mut bus = SlcanBus {
             io,
@@ -82,6 +82,15 @@ impl<T: ByteTransport> SlcanBus<T> {
             frames: VecDeque::new(),
         };
         bus.io.clear_input()?;
+        // A channel left open (by a process killed while it used the adapter) refuses a new
+        // bitrate with BEL, as real adapters do: close it first, as python-can's slcan does.
+        // An adapter whose channel is already closed may answer that with BEL too.
+        match bus.command(&SlcanMessage::Close) {
+            Ok(()) | Err(TransportError::Protocol { .. }) => {}
+            Err(e) => return Err(e),
+        }
+        // Frames the old channel still delivered are not this bus's.
+        bus.frames.clear();
         bus.command(&SlcanMessage::SetBitrate(config.bitrate))?;
         bus.command(&SlcanMessage::Open)?;
         Ok(bus)

@@ -3,6 +3,7 @@
 //! partial F-test of adding it, column-scaled least squares, row selection and weighting.
 
 use super::MIN_VISIBLE;
+use crate::identification::dense::bounded_svd;
 use nalgebra::{DMatrix, DVector};
 use rigcal_core::stats::{f_sf, ln_f_sf};
 
@@ -19,7 +20,9 @@ pub fn orth_basis(m: &DMatrix<f64>, tol: f64) -> DMatrix<f64> {
             c /= n;
         }
     }
-    let svd = s.svd(true, false);
+    let Some(svd) = bounded_svd(s, true, false) else {
+        return DMatrix::zeros(m.nrows(), 0);
+    };
     let Some(u) = svd.u else {
         return DMatrix::zeros(m.nrows(), 0);
     };
@@ -109,7 +112,9 @@ pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
     for (c, dc) in d.iter().enumerate() {
         s.column_mut(c).scale_mut(1.0 / dc);
     }
-    let svd = s.svd(true, true);
+    let Some(svd) = bounded_svd(s, true, true) else {
+        return failed(p);
+    };
     let smax = svd.singular_values.max();
     let tol = smax * 1e-10;
     let rank = svd.singular_values.iter().filter(|&&v| v > tol).count();

@@ -109,6 +109,9 @@ pub enum DiagnoseError {
         /// Joints in the recording.
         got: usize,
     },
+    /// A value read is not finite or beyond any measurement of the rig.
+    #[error(transparent)]
+    Absurd(#[from] Box<crate::identification::AbsurdValue>),
     /// The standard (geometric) fit failed.
     #[error("the geometric fit failed: {0}")]
     Fit(#[from] FitError),
@@ -358,6 +361,8 @@ pub fn prepare(
 /// the geometric fit of `rigcal identify --level full`. The data, Jacobian and residuals are
 /// those of the started chain (a free frame relative to its closed-form start).
 pub fn standard_fit(rig: &Rig, rec: &Recording) -> Result<Standard, DiagnoseError> {
+    // Absurd values first: an infinity in a matrix hangs the SVDs below.
+    crate::identification::check_recording(&rig.chain, rec).map_err(Box::new)?;
     let nominal = ErrorParams::zeros(rig.chain.layout());
     let pre = prepare(&rig.chain, &nominal, rec)?;
     let geometric = fit_geometry(rig, &pre.obs, &Level::Full.candidates(rig))?;
@@ -408,6 +413,9 @@ const OUTLIER_ROUNDS: usize = 3;
 /// a diagnosed effect explains is never removed, and no removal is silent (the report lists
 /// each with its seq, line and size).
 pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, DiagnoseError> {
+    for h in &opts.heldout {
+        crate::identification::check_recording(&rig.chain, h).map_err(Box::new)?;
+    }
     let lib = library_for(rig);
     let mut work = rec.clone();
     let mut removed: Vec<crate::identification::outliers::Outlier> = Vec::new();

@@ -114,8 +114,11 @@ pub fn outliers_against_structure(
         for row in work.rows.iter_mut().filter(|r| set_aside.contains(&r.seq)) {
             row.status = rigcal_core::recording::Status::Via;
         }
+        let started = std::time::Instant::now();
         let std = super::standard_fit(rig, &work)?;
         let sel = select_terms(&std, &lib)?;
+        tracing::debug!(seconds = started.elapsed().as_secs_f64(), "structure found");
+        let started = std::time::Instant::now();
         // Judged on every measured row: the rows set aside to find the structure are back,
         // predicted by it.
         let all = super::prepare(&std.data.chain, &std.data.e, rec)?;
@@ -138,6 +141,11 @@ pub fn outliers_against_structure(
             ))
         })
         .map(|(found, _)| found);
+        tracing::debug!(
+            seconds = started.elapsed().as_secs_f64(),
+            columns = a.ncols(),
+            "outliers judged against it"
+        );
         let found: Vec<u64> = match &last {
             Ok(f) => f.iter().map(|o| o.seq).collect(),
             Err(_) => break,

@@ -542,7 +542,9 @@ fn best_step(
 
 /// The largest canonical correlation between the spans of two orthonormal bases.
 fn max_correlation(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
-    (a.transpose() * b).svd(false, false).singular_values.max()
+    // Not finite (never on bounded data): no correlation can be told, so call it total.
+    crate::identification::dense::bounded_svd(a.transpose() * b, false, false)
+        .map_or(1.0, |svd| svd.singular_values.max())
 }
 
 /// Labels of the candidates whose visible part correlates with candidate `k`'s above

@@ -17,6 +17,7 @@
 //! [`RegionNode::learner_cep`], where what a region's measurements cannot see is put back to
 //! its parent's ([`DivisionOptions::learner_tolerance`]).
 
+pub mod confidence;
 pub mod design;
 mod planner;
 pub mod select;
@@ -24,7 +25,8 @@ mod space;
 mod tree;
 
 pub use planner::{
-    divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
+    divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode, TestPlan,
+    CONFIDENCE_Z,
 };
 pub use select::Selection;
 pub use space::{Bounds, DivisionSpace, Space};

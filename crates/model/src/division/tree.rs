@@ -14,6 +14,19 @@ pub struct RegionTest {
     pub max_mm: f64,
     /// RMS error (mm).
     pub rms_mm: f64,
+    /// Upper confidence bound of the region's largest error from its test points
+    /// ([`super::confidence`]); absent in models made before it (and offline, where the
+    /// held-out points are too few to fit it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bound_mm: Option<f64>,
+}
+
+impl RegionTest {
+    /// What the region is judged on: its confidence bound where it has one, else its largest
+    /// test error (the paper's rule).
+    pub fn verdict_mm(&self) -> f64 {
+        self.bound_mm.unwrap_or(self.max_mm).max(self.max_mm)
+    }
 }
 
 /// A region: a box, its CEPs, and its halves once split.
@@ -27,7 +40,10 @@ pub struct RegionNode {
     pub cep: Option<Vec<f64>>,
     /// κ of eq. (4) of the region's identification; infinite (`null` in a file) for a region
     /// never identified.
-    #[serde(deserialize_with = "null_is_infinite")]
+    #[serde(
+        serialize_with = "infinite_is_null",
+        deserialize_with = "null_is_infinite"
+    )]
     pub kappa: f64,
     /// Measurements used.
     pub measurements: usize,
@@ -50,6 +66,16 @@ pub struct RegionNode {
     /// The two halves, once split.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub children: Vec<RegionNode>,
+}
+
+/// JSON has no infinity: an infinite κ (a region never identified) is written as `null` on
+/// purpose, so a check for non-finite numbers in a model file does not take it for a broken fit.
+fn infinite_is_null<S: serde::Serializer>(kappa: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if kappa.is_finite() {
+        s.serialize_some(kappa)
+    } else {
+        s.serialize_none()
+    }
 }
 
 /// JSON has no infinity: serde_json writes it as `null`, read back here as infinite.

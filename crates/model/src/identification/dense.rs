@@ -88,6 +88,29 @@ pub(crate) fn transpose_times(a: &DMatrix<f64>, x: &DVector<f64>) -> DVector<f64
     })
 }
 
+/// The convergence tolerance of nalgebra's own `svd` (5 ε): bounded SVDs give its results.
+pub(crate) const SVD_EPSILON: f64 = 5.0 * f64::EPSILON;
+
+/// Most sweeps an SVD may take per column before it is abandoned: convergence takes a few per
+/// column on any finite matrix.
+const SVD_SWEEPS_PER_COLUMN: usize = 1_000;
+
+/// The SVD of `m`, or `None` when `m` holds a value that is not finite or the iteration does
+/// not converge within a bound. nalgebra's `svd` iterates without a bound and never returns on
+/// an infinity or a NaN: every SVD of identification and diagnosis goes through here, so no
+/// input can hang one.
+pub(crate) fn bounded_svd(
+    m: DMatrix<f64>,
+    compute_u: bool,
+    compute_v: bool,
+) -> Option<nalgebra::SVD<f64, nalgebra::Dyn, nalgebra::Dyn>> {
+    if m.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let sweeps = SVD_SWEEPS_PER_COLUMN * m.ncols().min(m.nrows()).max(1);
+    m.try_svd(compute_u, compute_v, SVD_EPSILON, sweeps)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

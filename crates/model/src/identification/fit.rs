@@ -73,6 +73,19 @@ pub enum FitError {
         /// Poses needed.
         needed: usize,
     },
+    /// The measurements repeat too few poses: however many rows, they cannot determine the
+    /// unknowns with any redundancy (rank loss), so a fit would report σ 0 and RMS 0.
+    #[error("{observations} measurements hold only {distinct} distinct pose(s): the poses do not spread, so they give at most {} independent equations for {unknowns} unknowns (rank loss; every residual and σ would read 0). Measure at least {needed} distinct poses spread over the workspace (ten times that for a calibration worth the name)", 3 * distinct)]
+    PosesDoNotSpread {
+        /// Measurements given.
+        observations: usize,
+        /// Distinct joint vectors among them.
+        distinct: usize,
+        /// Unknowns.
+        unknowns: usize,
+        /// Distinct poses needed at least.
+        needed: usize,
+    },
     /// The normal equations are singular: the poses do not separate the parameters.
     #[error("the poses do not separate the parameters (κ = {kappa:.3e}): spread the poses over the workspace or fit fewer parameters")]
     Singular {
@@ -144,6 +157,9 @@ pub struct FitResult {
     pub iterations: usize,
     /// Residual vectors (measured − modelled) per observation, after the fit.
     pub residuals: Vec<Vector3<f64>>,
+    /// Parameters the poses do not determine, held at their start values and not fitted
+    /// ([`super::analyse_determined`]; empty when the caller chose `free` itself).
+    pub undetermined: Vec<super::Undetermined>,
 }
 
 /// Fits the `free` parameters (layout indices) to the observations, starting from `start`.
@@ -204,6 +220,28 @@ impl NormalEquations {
             }
         }
     }
+}
+
+/// Joint values closer than this (rad or mm) in every joint are one pose.
+const SAME_POSE: f64 = 1e-9;
+
+/// The number of distinct joint vectors among `poses` (equal within [`SAME_POSE`] in every
+/// joint), counted on them sorted.
+pub(crate) fn distinct_poses(mut poses: Vec<&[f64]>) -> usize {
+    let cmp = |a: &&[f64], b: &&[f64]| {
+        a.iter()
+            .zip(b.iter())
+            .map(|(x, y)| x.total_cmp(y))
+            .find(|o| o.is_ne())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    };
+    poses.sort_by(cmp);
+    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() <= SAME_POSE);
+    poses
+        .iter()
+        .enumerate()
+        .filter(|(k, q)| *k == 0 || !same(poses[k - 1], q))
+        .count()
 }
 
 /// Relative rounding error of a modelled position (a dozen rigid products and the
@@ -276,7 +314,8 @@ impl<'a> Problem<'a> {
         }
     }
 
-    /// Refuses fewer equations than unknowns + 1.
+    /// Refuses fewer equations than unknowns + 1, counting a pose measured many times once:
+    /// repeats measure the noise, not the parameters.
     pub(crate) fn check_size(&self) -> Result<(), FitError> {
         let p = self.free.len();
         let rows = 3 * self.rows();
@@ -284,6 +323,19 @@ impl<'a> Problem<'a> {
             return Err(FitError::TooFewObservations {
                 observations: self.rows(),
                 rows,
+                unknowns: p,
+                needed: p / 3 + 1,
+            });
+        }
+        let poses: Vec<&[f64]> = match self.subset {
+            Some(rows) => rows.iter().map(|&i| self.obs[i].q.as_slice()).collect(),
+            None => self.obs.iter().map(|o| o.q.as_slice()).collect(),
+        };
+        let distinct = distinct_poses(poses);
+        if 3 * distinct < p + 1 {
+            return Err(FitError::PosesDoNotSpread {
+                observations: self.rows(),
+                distinct,
                 unknowns: p,
                 needed: p / 3 + 1,
             });
@@ -521,6 +573,7 @@ impl<'a> Problem<'a> {
             sigma0_mm: s2.sqrt(),
             iterations,
             residuals,
+            undetermined: Vec::new(),
         };
         Ok((fit, normal))
     }

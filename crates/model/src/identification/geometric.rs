@@ -11,7 +11,10 @@
 //! diagnosis works on the started chain, where the Jacobian and the residuals were computed.
 
 use super::registration::kabsch;
-use super::{analyse, candidate_order, fit, FitError, FitOptions, FitResult, Identifiability};
+use super::{
+    analyse, analyse_determined, candidate_order, fit, FitError, FitOptions, FitResult,
+    Identifiability,
+};
 use rigcal_core::kinematics::{ErrorParams, JointKind, ParamKind, Robot, SerialChain, TransformId};
 use rigcal_core::recording::Observation;
 use rigcal_core::rig::{FrameMode, Rig};
@@ -107,20 +110,63 @@ pub fn fit_geometry(
         rig.chain.clone()
     };
     let poses: Vec<Vec<f64>> = obs.iter().map(|o| o.q.clone()).collect();
-    let identifiability = analyse(&started, &poses, candidates);
-    let fit = fit(
+    let identifiability = analyse_determined(&started, &poses, candidates);
+    let mut fit = fit(
         &started,
         obs,
         &nominal,
         &identifiability.basis,
         &FitOptions::default(),
-    )?;
+    )
+    .map_err(|e| against_a_spread_design(rig, &started, candidates, e))?;
+    fit.undetermined = identifiability.undetermined.clone();
     Ok(GeometricFit {
         started,
         fit,
         identifiability,
         nominal: free_frame.then(|| rig.chain.clone()),
     })
+}
+
+/// A [`FitError::PosesDoNotSpread`] restated for what a spread design fits: the poses' own
+/// analysis lost the rank they lack, so its unknowns understate what is needed. Other errors
+/// pass unchanged.
+pub(crate) fn against_a_spread_design(
+    rig: &Rig,
+    started: &SerialChain,
+    candidates: &[usize],
+    e: FitError,
+) -> FitError {
+    match e {
+        FitError::PosesDoNotSpread {
+            observations,
+            distinct,
+            ..
+        } => {
+            let unknowns = spread_rank(rig, started, candidates);
+            FitError::PosesDoNotSpread {
+                observations,
+                distinct,
+                unknowns,
+                needed: unknowns / 3 + 1,
+            }
+        }
+        e => e,
+    }
+}
+
+/// How many of `candidates` a design spread over the joint limits identifies (the rank of
+/// \[M\] over random poses, a fixed seed): what repeated poses lose.
+fn spread_rank(rig: &Rig, started: &SerialChain, candidates: &[usize]) -> usize {
+    use rand::SeedableRng;
+    let mut rng = rand::rngs::ChaCha8Rng::seed_from_u64(1);
+    let poses = super::random_poses(
+        rigcal_core::kinematics::Robot::joints(started),
+        rig.held(),
+        3 * candidates.len() + 10,
+        &mut rng,
+    );
+    analyse(started, &poses, candidates).rank
 }
 
 /// Why an identification failed.
@@ -139,6 +185,12 @@ pub enum IdentifyError {
     /// The least-squares fit failed.
     #[error("identification failed")]
     Fit(#[source] FitError),
+    /// A value read is not finite or beyond any measurement of the rig.
+    #[error(transparent)]
+    Absurd(#[from] Box<super::checks::AbsurdValue>),
+    /// The fit diverged (residual grew, values not finite or beyond the rig's bounds).
+    #[error(transparent)]
+    Diverged(#[from] super::checks::Diverged),
     /// A held-out recording has no measured rows.
     #[error("held-out recording {name}: no measured rows")]
     HeldOutEmpty {
@@ -160,6 +212,7 @@ pub fn identify_at(
     if candidates.is_empty() {
         return Err(IdentifyError::NothingToFit { level });
     }
+    super::checks::check_observations(&rig.chain, obs).map_err(Box::new)?;
     let geometric = fit_geometry(rig, obs, &candidates).map_err(IdentifyError::Fit)?;
     Ok(geometric.into_absolute())
 }

@@ -10,6 +10,7 @@
 //!
 //! κ is eq. (4): κ(\[M\]) = ‖MᵀM‖·‖(MᵀM)⁻¹‖ = (σ_max/σ_min)² of the scaled basis columns.
 
+use super::dense::bounded_svd;
 use super::robot_at::Kinematics;
 use nalgebra::{DMatrix, DVector, Vector3};
 use rigcal_core::kinematics::{ErrorParams, ParamId, ParamLayout, Robot, TransformId};
@@ -38,6 +39,34 @@ pub struct Identifiability {
     pub singular_values: Vec<f64>,
     /// Number of poses used.
     pub poses: usize,
+    /// Basis parameters the poses do not determine ([`analyse_determined`]): left out of
+    /// `basis`, held at their nominal values; empty from [`analyse`].
+    pub undetermined: Vec<Undetermined>,
+}
+
+/// Below this, a basis column's part independent of the determined columns (relative to the
+/// column's own length, after the measurement frame) leaves its parameter undetermined: the
+/// pivoted QR diagonal |R_kk| / ‖column k‖ of the column-scaled \[M\], as FIGAROH's base
+/// parameter selection reads the diagonal of a column-pivoted QR. At 10⁻³ a parameter's own
+/// effect on the measured points is at least 0.1 % of its whole effect, so its estimate is at
+/// most about a thousand times noisier than the same parameter measured alone; κ (eq. 4) of
+/// the determined set stays below about 10⁶ · (number of parameters). The synthetic rigs'
+/// designs keep every basis parameter well above it (smallest ≈ 10⁻¹); the UR10's Series D
+/// (ISO cubes, one tool direction) falls below it for the marker's z (κ 6.2·10⁷ before).
+pub const DETERMINED_TOL: f64 = 1e-3;
+
+/// A basis parameter the poses do not determine.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Undetermined {
+    /// Its layout index.
+    pub param: usize,
+    /// Its column's part independent of the determined columns, relative to its length
+    /// (the pivoted QR diagonal; below [`DETERMINED_TOL`]).
+    pub independent: f64,
+    /// The determined parameters that take over its effect: `(parameter, coefficient in
+    /// parameter units)`, largest first. A shift δ of this parameter moves the measured points
+    /// as the shifts `coefficient · δ` of these do, to within `independent`.
+    pub combination: Vec<(usize, f64)>,
 }
 
 /// The candidate parameters of a rig in priority order: measurement frame and marker first when
@@ -129,13 +158,12 @@ pub(crate) fn analyse_factor(
     let r = DMatrix::from_fn(m.nrows(), effective.len(), |row, k| {
         m[(row, effective[k])] / norms[effective[k]]
     });
+    // No SVD (a value not finite: the inputs are bounded before, so never on data) leaves no
+    // singular value, rank 0 and an empty basis: nothing is fitted.
     let mut singular_values: Vec<f64> = if r.ncols() > 0 {
-        r.clone()
-            .svd(false, false)
-            .singular_values
-            .iter()
-            .copied()
-            .collect()
+        bounded_svd(r.clone(), false, false)
+            .map(|svd| svd.singular_values.iter().copied().collect())
+            .unwrap_or_default()
     } else {
         Vec::new()
     };
@@ -173,7 +201,7 @@ pub(crate) fn analyse_factor(
         r[(row, chosen[c])] * norms[b_cols[c]]
     });
     let kappa = kappa_eq4(&mb);
-    let svd_b = mb.clone().svd(true, true);
+    let svd_b = bounded_svd(mb.clone(), true, true);
     let mut confounded = Vec::new();
     for k in 0..effective.len() {
         if chosen.contains(&k) {
@@ -181,8 +209,9 @@ pub(crate) fn analyse_factor(
         }
         let col = unscaled(k);
         let coef = svd_b
-            .solve(&col, 1e-12)
-            .unwrap_or_else(|_| DVector::zeros(b_cols.len()));
+            .as_ref()
+            .and_then(|svd| svd.solve(&col, 1e-12).ok())
+            .unwrap_or_else(|| DVector::zeros(b_cols.len()));
         let mut terms: Vec<(usize, f64)> = coef
             .iter()
             .enumerate()
@@ -199,7 +228,140 @@ pub(crate) fn analyse_factor(
         kappa,
         singular_values,
         poses,
+        undetermined: Vec::new(),
     }
+}
+
+/// [`analyse`], then the basis reduced to what the poses determine: rank-revealing QR with
+/// column pivoting on the column-scaled \[M\] of the basis ([`DETERMINED_TOL`]). The measurement
+/// frame's parameters come first and always stay (each recording re-registers its frame, so it
+/// has no nominal to hold); then the column with the largest part independent of those chosen
+/// enters, until none is left above the threshold. The others are moved to
+/// [`Identifiability::undetermined`] with the combination of determined parameters that
+/// takes over their effect; a fit holds them at nominal.
+pub fn analyse_determined(
+    robot: &dyn Robot,
+    poses: &[Vec<f64>],
+    candidates: &[usize],
+) -> Identifiability {
+    let e = ErrorParams::zeros(robot.layout());
+    let m = stacked_jacobian(robot, &e, poses, candidates);
+    determined_factor(
+        &triangular_factor(m),
+        poses.len(),
+        candidates,
+        robot.layout(),
+    )
+}
+
+/// [`analyse_determined`] from the triangular factor of \[M\] (as [`analyse_factor`]).
+pub(crate) fn determined_factor(
+    r: &DMatrix<f64>,
+    poses: usize,
+    candidates: &[usize],
+    layout: &ParamLayout,
+) -> Identifiability {
+    let mut a = analyse_factor(r, poses, candidates);
+    restrict_to_determined(r, candidates, layout, &mut a);
+    a
+}
+
+/// Moves the basis parameters the columns of `r` (candidate order) do not determine out of
+/// the basis (see [`analyse_determined`]); κ is then that of the determined columns.
+fn restrict_to_determined(
+    r: &DMatrix<f64>,
+    candidates: &[usize],
+    layout: &ParamLayout,
+    a: &mut Identifiability,
+) {
+    let column = |p: usize| {
+        candidates
+            .iter()
+            .position(|&c| c == p)
+            .map(|c| r.column(c).clone_owned())
+    };
+    let cols: Vec<(usize, DVector<f64>)> = a
+        .basis
+        .iter()
+        .filter_map(|&p| column(p).map(|c| (p, c)))
+        .collect();
+    let is_frame = |p: usize| layout.ids()[p].transform == TransformId::Frame;
+    let unit = |v: &DVector<f64>| {
+        let n = v.norm();
+        if n > 0.0 {
+            v / n
+        } else {
+            v.clone()
+        }
+    };
+    let mut q: Vec<DVector<f64>> = Vec::new();
+    let independent = |q: &[DVector<f64>], v: &DVector<f64>| {
+        let mut w = unit(v);
+        for _ in 0..2 {
+            for b in q {
+                let d = b.dot(&w);
+                w -= b * d;
+            }
+        }
+        w
+    };
+    let mut chosen: Vec<usize> = Vec::new();
+    for (p, c) in cols.iter().filter(|(p, _)| is_frame(*p)) {
+        let w = independent(&q, c);
+        q.push(unit(&w));
+        chosen.push(*p);
+    }
+    let mut left: Vec<&(usize, DVector<f64>)> =
+        cols.iter().filter(|(p, _)| !is_frame(*p)).collect();
+    let share: Vec<f64> = loop {
+        let share: Vec<f64> = left
+            .iter()
+            .map(|(_, c)| independent(&q, c).norm())
+            .collect();
+        let best = share
+            .iter()
+            .enumerate()
+            .max_by(|x, y| x.1.total_cmp(y.1))
+            .map(|(k, &s)| (k, s));
+        let Some((k, s)) = best else { break share };
+        if s < DETERMINED_TOL {
+            break share;
+        }
+        let (p, c) = left.remove(k);
+        q.push(unit(&independent(&q, c)));
+        chosen.push(*p);
+    };
+    if left.is_empty() {
+        return;
+    }
+    // The basis keeps its priority order; the determined columns' own κ replaces the basis's.
+    a.basis.retain(|p| chosen.contains(p));
+    let mb = DMatrix::from_columns(
+        &a.basis
+            .iter()
+            .filter_map(|&p| column(p))
+            .collect::<Vec<_>>(),
+    );
+    a.kappa = kappa_eq4(&mb);
+    let svd = bounded_svd(mb, true, true);
+    a.undetermined = left
+        .iter()
+        .zip(&share)
+        .map(|((p, c), &independent)| {
+            let coef = svd
+                .as_ref()
+                .and_then(|svd| svd.solve(c, 1e-12).ok())
+                .unwrap_or_else(|| DVector::zeros(a.basis.len()));
+            let mut combination: Vec<(usize, f64)> =
+                a.basis.iter().copied().zip(coef.iter().copied()).collect();
+            combination.sort_by(|x, y| y.1.abs().total_cmp(&x.1.abs()));
+            Undetermined {
+                param: *p,
+                independent,
+                combination,
+            }
+        })
+        .collect();
 }
 
 /// The triangular factor R of a tall matrix (the matrix itself when it is not taller than
@@ -225,7 +387,10 @@ pub fn kappa_eq4(m: &DMatrix<f64>) -> f64 {
             col.fill(0.0);
         }
     }
-    let sv = triangular_factor(scaled).svd(false, false).singular_values;
+    let Some(svd) = bounded_svd(triangular_factor(scaled), false, false) else {
+        return f64::INFINITY;
+    };
+    let sv = svd.singular_values;
     let smax = sv.max();
     let smin = sv.min();
     if smin <= 0.0 {
@@ -272,6 +437,9 @@ pub fn report(layout: &ParamLayout, a: &Identifiability, candidates: usize) -> S
                 .join(" ")
         );
     }
+    if !a.undetermined.is_empty() {
+        let _ = write!(s, "{}", undetermined_text(layout, &a.undetermined, name));
+    }
     if !a.confounded.is_empty() {
         let _ = writeln!(
             s,
@@ -291,6 +459,49 @@ pub fn report(layout: &ParamLayout, a: &Identifiability, candidates: usize) -> S
                 .collect();
             let _ = writeln!(s, "  {:<10} ≡ {}", name(*p), shown.join(" "));
         }
+    }
+    s
+}
+
+/// The lines that name the undetermined parameters, each with the determined combination that
+/// takes over its effect (`name(i)` names layout index i).
+pub fn undetermined_text(
+    layout: &ParamLayout,
+    undetermined: &[Undetermined],
+    name: impl Fn(usize) -> String,
+) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    if undetermined.is_empty() {
+        return s;
+    }
+    let _ = writeln!(
+        s,
+        "not determined by these poses (held at nominal, not exported; independent part below {DETERMINED_TOL:.0e} of the column):"
+    );
+    for u in undetermined {
+        let pid = layout.ids()[u.param];
+        let shown: Vec<String> = u
+            .combination
+            .iter()
+            .take(4)
+            .filter(|(_, c)| c.abs() > 1e-6)
+            .map(|(b, c)| {
+                let (cv, unit) = coefficient_units(*c, pid, layout.ids()[*b]);
+                format!("{cv:+.4}{unit}·{}", name(*b))
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "  {:<10} independent part {:.1e}; its effect ≈ {}",
+            name(u.param),
+            u.independent,
+            if shown.is_empty() {
+                "none".to_string()
+            } else {
+                shown.join(" ")
+            }
+        );
     }
     s
 }

@@ -7,7 +7,10 @@
 //! that start without another pass over the data, and the iteration continues to the same
 //! tolerance as a fit from the nominal parameters. The least-squares minimum does not depend on
 //! the start, so parameters, σ, κ and residuals equal those of a refit from scratch up to
-//! the fit's tolerance; only the iteration count is smaller.
+//! the fit's tolerance; only the iteration count is smaller. That holds when the last fit was
+//! near the minimum of the kept rows; a gross row drags it far off (degrees, metres), where the
+//! kept rows' cost has other minima — a refit that ends above the nominal parameters' residual
+//! is therefore redone from the nominal parameters.
 //!
 //! The identifiability analysis of the kept rows is repeated exactly, on the triangular factor
 //! of \[M\] at the nominal parameters ([`super::identifiability`] decides on it). \[M\] is computed
@@ -20,8 +23,8 @@
 //! rows, which moves with them: such refits run from scratch ([`super::identify_at`]).
 
 use super::fit::{NormalEquations, Problem};
-use super::geometric::{identify_at, IdentifyError, Level};
-use super::identifiability::{analyse_factor, stacked_jacobian, triangular_factor};
+use super::geometric::{against_a_spread_design, identify_at, IdentifyError, Level};
+use super::identifiability::{determined_factor, stacked_jacobian, triangular_factor};
 use super::{FitOptions, FitResult, ResidualStats};
 use nalgebra::{DMatrix, Vector3};
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain};
@@ -90,26 +93,69 @@ impl<'a> GeometricRefits<'a> {
         if self.candidates.is_empty() {
             return Err(IdentifyError::NothingToFit { level: self.level });
         }
-        let basis = analyse_factor(&factors.factor(kept), kept.len(), &self.candidates).basis;
+        let analysis = determined_factor(
+            &factors.factor(kept),
+            kept.len(),
+            &self.candidates,
+            self.rig.chain.layout(),
+        );
+        let basis = analysis.basis;
         let chain = &self.rig.chain;
         let mut problem = Problem::new(chain, self.obs, Some(kept), &basis, None);
-        problem.check_size().map_err(IdentifyError::Fit)?;
+        problem.check_size().map_err(|e| {
+            IdentifyError::Fit(against_a_spread_design(
+                self.rig,
+                chain,
+                &self.candidates,
+                e,
+            ))
+        })?;
         let before = ResidualStats::of(
             &kept
                 .iter()
                 .map(|&i| self.nominal_errors[i])
                 .collect::<Vec<_>>(),
         );
-        let (start, normal) = match self.last.take() {
-            Some(last) if last.basis == basis && is_subset(kept, &last.kept) => {
+        let from_last = match self.last.take() {
+            Some(last)
+                if last.basis == basis
+                    && is_subset(kept, &last.kept)
+                    && self.within_bounds(&last) =>
+            {
                 let normal = downdate(chain, self.obs, &last, kept);
-                (last.params, Some(normal))
+                Some((last.params, normal))
             }
-            _ => (ErrorParams::zeros(chain.layout()), None),
+            _ => None,
         };
-        let (fit, normal) = problem
-            .solve_keeping_normal(start, normal, before, &FitOptions::default())
-            .map_err(IdentifyError::Fit)?;
+        let opts = FitOptions::default();
+        let mut solved = match from_last {
+            Some((start, normal)) => {
+                problem.solve_keeping_normal(start, Some(normal), before, &opts)
+            }
+            None => problem.solve_keeping_normal(
+                ErrorParams::zeros(chain.layout()),
+                None,
+                before,
+                &opts,
+            ),
+        }
+        .map_err(IdentifyError::Fit)?;
+        if worse_than_nominal(&solved.0) {
+            // The last fit had chased the removed rows away from the nominal parameters; from
+            // there the kept rows' cost has other, worse minima than the one near the nominal
+            // values, and the refit stayed in one. Start again from the nominal parameters, as
+            // a fit from scratch.
+            tracing::debug!(
+                after_mm = solved.0.after.rms_mm,
+                nominal_mm = before.rms_mm,
+                "refit from the last fit ended above the nominal residual: refitting from nominal"
+            );
+            solved = problem
+                .solve_keeping_normal(ErrorParams::zeros(chain.layout()), None, before, &opts)
+                .map_err(IdentifyError::Fit)?;
+        }
+        let (mut fit, normal) = solved;
+        fit.undetermined = analysis.undetermined;
         self.last = Some(LastFit {
             kept: kept.to_vec(),
             basis,
@@ -182,6 +228,24 @@ fn select_rows(m: &DMatrix<f64>, kept: &[usize]) -> DMatrix<f64> {
         }
     }
     out
+}
+
+impl GeometricRefits<'_> {
+    /// Whether the last fit's parameters lie within the rig's bounds on corrections
+    /// ([`super::checks::check_parameters`]). A gross row drags a fit by degrees or metres, to
+    /// where the kept rows' cost has other minima — worse ones, or equivalent descriptions of
+    /// the same arm with joints turned half a turn and lengths negated — so a refit starts
+    /// from there only when the last fit stayed physical.
+    fn within_bounds(&self, last: &LastFit) -> bool {
+        super::checks::check_parameters(self.rig, &self.rig.chain, &last.params, &last.basis)
+            .is_ok()
+    }
+}
+
+/// True when a fit ended with a larger residual than the nominal parameters give: it did not
+/// start in the nominal parameters' basin (a fit from them never ends above them).
+fn worse_than_nominal(fit: &FitResult) -> bool {
+    fit.after.rms_mm > fit.before.rms_mm * (1.0 + 1e-9)
 }
 
 /// True when every element of `a` (increasing) is in `b` (increasing).

@@ -17,10 +17,13 @@
 //!   this fit.
 //! * [`pipeline`]: [`identify`], conventional calibration of a recording: the geometric fit with
 //!   outliers removed and the fitted model checked on held-out recordings.
+//! * [`checks`]: what a fit reads is bounded (no absurd coordinate reaches a matrix) and what
+//!   it returns is judged (a diverged fit is an error, never a model).
 //!
 //! Units: mm and rad inside.
 
-mod dense;
+pub mod checks;
+pub(crate) mod dense;
 pub mod fit;
 pub mod geometric;
 pub mod identifiability;
@@ -30,9 +33,12 @@ pub mod pipeline;
 pub mod registration;
 mod robot_at;
 
+pub use checks::{check_fit, check_observations, check_recording, AbsurdValue, Diverged};
 pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};
 pub use geometric::{fit_geometry, identify_at, GeometricFit, IdentifyError, Level};
-pub use identifiability::{analyse, candidate_order, Identifiability};
+pub use identifiability::{
+    analyse, analyse_determined, candidate_order, Identifiability, Undetermined, DETERMINED_TOL,
+};
 pub use pipeline::{
     identify, HeldOut, HeldOutReport, Identification, IdentifyOptions, StructureJudge,
 };

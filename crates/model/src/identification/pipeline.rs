@@ -15,6 +15,7 @@
 //! The parameters returned are absolute (free frames included), for the rig's own chain, so a
 //! model file written from them stands alone.
 
+use super::checks::{check_fit, check_recording};
 use super::geometric::{identify_at, IdentifyError, Level};
 use super::incremental::GeometricRefits;
 use super::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
@@ -94,14 +95,22 @@ pub struct Identification {
 /// against the recording's structure when the geometry flags any; more than
 /// [`OutlierSettings::max_fraction`] of the rows failing removes nothing and sets
 /// [`Identification::outlier_warning`]. Then each held-out recording is checked.
+///
+/// Every recording is checked for absurd values first ([`check_recording`]) and the fit after
+/// ([`check_fit`]): a diverged fit is an error, not an identification.
 pub fn identify(
     rig: &Rig,
     rec: &Recording,
     level: Level,
     opts: &IdentifyOptions,
 ) -> Result<Identification, IdentifyError> {
+    check_recording(&rig.chain, rec).map_err(Box::new)?;
+    for h in &opts.heldout {
+        check_recording(&rig.chain, &h.recording).map_err(Box::new)?;
+    }
     let (chain, fit, outliers, outlier_warning) =
         identify_robust(rig, rec, level, &opts.outliers, opts.structure)?;
+    check_fit(rig, &chain, &fit)?;
     let heldout = opts
         .heldout
         .iter()
@@ -139,14 +148,25 @@ fn identify_robust(
     if level.candidates(rig).is_empty() {
         return Err(IdentifyError::NothingToFit { level });
     }
+    let started = std::time::Instant::now();
     let judged = geometric_judgement(rig, &obs, &measured_ids(rec), level, settings)?;
+    tracing::debug!(
+        seconds = started.elapsed().as_secs_f64(),
+        "geometric outlier search"
+    );
     if judged.decided_without_structure() {
         tracing::debug!(
             outliers = judged.search.as_ref().map_or(0, |(found, _)| found.len()),
             "outliers decided by the geometric judgement"
         );
     } else if let Some(judge) = structure {
-        match judge(rig, rec, settings) {
+        let started = std::time::Instant::now();
+        let verdict = judge(rig, rec, settings);
+        tracing::debug!(
+            seconds = started.elapsed().as_secs_f64(),
+            "outliers judged against the structure"
+        );
+        match verdict {
             Ok(found) => return without_rows_that_fail(rig, &obs, level, found),
             Err(e) => tracing::debug!(%e, "outliers judged against the geometry only"),
         }

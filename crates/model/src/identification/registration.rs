@@ -72,6 +72,9 @@ pub enum RegisterError {
         /// Rows that carry them.
         found: usize,
     },
+    /// A value read is not finite or beyond any measurement of the arm.
+    #[error(transparent)]
+    Absurd(#[from] Box<super::checks::AbsurdValue>),
     /// The fit failed.
     #[error(transparent)]
     Fit(#[from] FitError),
@@ -83,6 +86,7 @@ pub fn register_recording(
     chain: &SerialChain,
     rec: &Recording,
 ) -> Result<Registration, RegisterError> {
+    super::checks::check_recording(chain, rec).map_err(Box::new)?;
     let obs = rec.table_observations();
     if obs.len() < 3 {
         return Err(RegisterError::TooFewTablePoints { found: obs.len() });
@@ -126,8 +130,12 @@ pub fn kabsch(a: &[Vector3<f64>], b: &[Vector3<f64>]) -> Isometry3<f64> {
     for (p, q) in a.iter().zip(b) {
         h += (p - ca) * (q - cb).transpose();
     }
-    let svd = h.svd(true, true);
-    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+    // A matrix that is not finite has no SVD (nalgebra's would never return): translation only.
+    let finite = h.iter().all(|v| v.is_finite());
+    let svd = finite
+        .then(|| h.try_svd(true, true, super::dense::SVD_EPSILON, 10_000))
+        .flatten();
+    let (Some(u), Some(v_t)) = (svd.as_ref().and_then(|s| s.u), svd.and_then(|s| s.v_t)) else {
         return Isometry3::translation(cb.x - ca.x, cb.y - ca.y, cb.z - ca.z);
     };
     let v = v_t.transpose();

@@ -49,8 +49,53 @@ pub struct TableFaults {
     pub ignore_sdo: bool,
     /// Extra delay on every response.
     pub extra_delay: Duration,
+    /// SDO frames lost on the bus, requests and responses alike (heartbeats and EMCYs get
+    /// through: the supervision is tested on its own with [`TableFaults::silent_heartbeat`]).
+    pub sdo_loss: FrameLoss,
     /// Frames received from the host.
     pub frames_received: u64,
+    /// Per drive (x, y, z): the last controlword written to it (0x6040), `None` before any.
+    pub last_controlword: [Option<u16>; 3],
+}
+
+/// A seeded, repeatable loss of frames: each frame is lost with probability `rate`, drawn from
+/// a generator of its own (a dry run with a loss schedule loses the same frames every time).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrameLoss {
+    /// Fraction of frames lost (0 to 1).
+    pub rate: f64,
+    /// The generator's state (its seed before the first draw).
+    pub state: u64,
+    /// Frames lost so far.
+    pub lost: u64,
+}
+
+impl FrameLoss {
+    /// A loss of `rate` (0 to 1) drawn from `seed`.
+    pub fn new(rate: f64, seed: u64) -> Self {
+        FrameLoss {
+            rate,
+            state: seed,
+            lost: 0,
+        }
+    }
+
+    /// Draws for one frame: true when it is lost.
+    pub fn lose(&mut self) -> bool {
+        if self.rate <= 0.0 {
+            return false;
+        }
+        // SplitMix64: small, seedable, and good enough for a loss schedule.
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        let u = (z >> 11) as f64 / (1u64 << 53) as f64;
+        let lost = u < self.rate;
+        self.lost += u64::from(lost);
+        lost
+    }
 }
 
 /// Shared handle to an emulated table's [`TableFaults`].

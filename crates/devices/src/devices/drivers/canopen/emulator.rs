@@ -14,6 +14,11 @@
 //! falls, and target reached (bit 10) when the profile ends. Halt (bit 8) stops the axis where
 //! it is. A fault stops the axis, raises bit 3 (and bit 13 for a following error) and sends an
 //! EMCY; a rising edge of bit 7 clears it (to *switch on disabled*) and sends an EMCY "no error".
+//! A quick stop (controlword `0x0002`) stops the axis where it is and leaves the drive in
+//! *switch on disabled* (quick stop option code 2, the CiA 402 default), its set-point gone.
+//! Faults a test injects ([`TableFaults`](crate::devices::emulators::faults::TableFaults)):
+//! silent heartbeats, ignored or late SDOs, a seeded loss of SDO frames; the drives' last
+//! controlwords are kept there for tests to look at.
 //! Positions in counts on the wire; the true motion in mm goes to the shared [`TableTruth`](crate::devices::emulators::TableTruth).
 
 use std::collections::VecDeque;
@@ -292,6 +297,9 @@ impl TableEmulator {
                 match index {
                     od::CONTROLWORD => {
                         self.controlword(k, v as u16, now);
+                        if let Some(slot) = lock(&self.faults).last_controlword.get_mut(axis) {
+                            *slot = Some(v as u16);
+                        }
                         ok
                     }
                     od::MODES_OF_OPERATION => {
@@ -388,11 +396,18 @@ impl TableEmulator {
 impl FrameEmulator for TableEmulator {
     fn input(&mut self, frame: &CanFrame, now: Duration) {
         self.update(now);
-        let (ignore, delay) = {
+        let (ignore, delay, lost) = {
             let mut f = lock(&self.faults);
             f.frames_received += 1;
-            (f.ignore_sdo, f.extra_delay)
+            let sdo = matches!(
+                CanOpenMessage::decode(frame),
+                Ok(CanOpenMessage::SdoRequest { .. })
+            );
+            (f.ignore_sdo, f.extra_delay, sdo && f.sdo_loss.lose())
         };
+        if lost {
+            return;
+        }
         match CanOpenMessage::decode(frame) {
             Ok(CanOpenMessage::Nmt(nmt)) => {
                 for d in &mut self.drives {
@@ -430,7 +445,9 @@ impl FrameEmulator for TableEmulator {
             };
             self.update(t);
             let resp = self.sdo(node, req, t);
-            self.out.push_back((t, resp.encode(node)));
+            if !lock(&self.faults).sdo_loss.lose() {
+                self.out.push_back((t, resp.encode(node)));
+            }
         }
         self.heartbeats(now);
         let mut due: Vec<(Duration, CanFrame)> = Vec::new();

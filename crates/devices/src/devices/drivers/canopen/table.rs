@@ -12,7 +12,9 @@
 //! reached (bit 10), which is already set before a move starts — hence the acknowledge first.
 //! Fault (bit 3), following error (bit 13) and EMCY frames end the wait with a typed error.
 //! Heartbeats are supervised as a master would (limit three periods) whenever the driver talks
-//! to the bus: frames are drained and each node's last heartbeat time is checked.
+//! to the bus: frames are drained and each node's last heartbeat time is checked. An SDO left
+//! unanswered is sent again (up to [`SDO_ATTEMPTS`] times) before its timeout is an error. A
+//! safe stop ([`Table::quick_stop`]) sends the CiA 402 quick stop command to every drive.
 //!
 //! Units: mm on the trait, counts on the wire (counts per mm per axis from the rig file); times
 //! on the driver's [`Clock`](crate::devices::clock::Clock).
@@ -32,6 +34,11 @@ use crate::protocols::canopen::{
 use crate::transports::{CanBus, TransportError};
 
 const AXES: [char; 3] = ['x', 'y', 'z'];
+
+/// How often an SDO request is sent before its timeout counts: CAN loses a frame now and then
+/// (a bus error, an overrun in a busy adapter), and at a few per cent of frames lost one
+/// exchange in ten needs a repeat; five attempts leave about one failed exchange in 10⁵.
+pub const SDO_ATTEMPTS: u32 = 5;
 
 /// The CANopen table driver.
 #[derive(Debug)]
@@ -163,7 +170,27 @@ impl<B: CanBus> CanOpenTable<B> {
         Ok(())
     }
 
+    /// One SDO exchange with drive `k`: the request sent again while no answer comes, up to
+    /// [`SDO_ATTEMPTS`] times (a lost frame on the bus, in either direction, costs one SDO
+    /// timeout instead of the session), the bus drained before each repeat so that a late
+    /// answer to an earlier attempt is not left for the next exchange. A repeated request is
+    /// harmless: a write sets the same value again (a controlword written twice is no new
+    /// edge), a read reads again.
     fn sdo(&mut self, k: usize, req: SdoRequest) -> Result<SdoResponse, DeviceError> {
+        let mut attempt = 1;
+        loop {
+            match self.sdo_once(k, req) {
+                Err(e @ DeviceError::Timeout { .. }) if attempt < SDO_ATTEMPTS => {
+                    tracing::debug!("table: SDO lost ({e}); sending it again");
+                    attempt += 1;
+                    self.drain()?;
+                }
+                other => return other,
+            }
+        }
+    }
+
+    fn sdo_once(&mut self, k: usize, req: SdoRequest) -> Result<SdoResponse, DeviceError> {
         let node = self.nodes[k];
         let (index, sub, access) = match req {
             SdoRequest::Upload { index, sub } => (index, sub, "read"),
@@ -283,9 +310,37 @@ impl<B: CanBus> CanOpenTable<B> {
     }
 
     /// Reads the three actual positions with the three SDO requests on the bus at once (one
-    /// per drive), so every axis is read one bus latency after the call.
+    /// per drive), so every axis is read one bus latency after the call. A request left
+    /// unanswered is sent again, as [`Self::sdo`] does, up to [`SDO_ATTEMPTS`] times.
     fn read_positions(&mut self) -> Result<[f64; 3], DeviceError> {
+        let mut got: [Option<f64>; 3] = [None; 3];
+        let mut attempt = 1;
+        loop {
+            match self.read_positions_once(&mut got) {
+                Err(e @ DeviceError::Timeout { .. }) if attempt < SDO_ATTEMPTS => {
+                    tracing::debug!("table: position read lost ({e}); asking again");
+                    attempt += 1;
+                    self.drain()?;
+                }
+                Err(e) => return Err(e),
+                Ok(()) => break,
+            }
+        }
+        let p = [
+            got[0].unwrap_or(f64::NAN),
+            got[1].unwrap_or(f64::NAN),
+            got[2].unwrap_or(f64::NAN),
+        ];
+        self.last_pos = Some(p);
+        Ok(p)
+    }
+
+    /// Asks every drive whose position `got` lacks, and waits for their answers.
+    fn read_positions_once(&mut self, got: &mut [Option<f64>; 3]) -> Result<(), DeviceError> {
         for k in 0..3 {
+            if got[k].is_some() {
+                continue;
+            }
             let req = SdoRequest::Upload {
                 index: od::POSITION_ACTUAL,
                 sub: 0,
@@ -296,7 +351,6 @@ impl<B: CanBus> CanOpenTable<B> {
         }
         let start = self.clock.now();
         let deadline = start + Duration::from_millis(self.cfg.sdo_timeout_ms);
-        let mut got: [Option<f64>; 3] = [None; 3];
         while got.iter().any(Option::is_none) {
             let remaining = deadline.saturating_sub(self.clock.now());
             let frame = match self.bus.recv(remaining) {
@@ -338,13 +392,7 @@ impl<B: CanBus> CanOpenTable<B> {
                 SdoResponse::DownloadAck { .. } => {}
             }
         }
-        let p = [
-            got[0].unwrap_or(f64::NAN),
-            got[1].unwrap_or(f64::NAN),
-            got[2].unwrap_or(f64::NAN),
-        ];
-        self.last_pos = Some(p);
-        Ok(p)
+        Ok(())
     }
 
     fn timeout(&self, waiting_for: String, waited: Duration) -> DeviceError {
@@ -579,6 +627,24 @@ impl<B: CanBus> Table for CanOpenTable<B> {
     fn halt(&mut self, _timeout: Duration) -> Result<[f64; 3], DeviceError> {
         for k in 0..3 {
             self.write_cw(k, Controlword::ENABLE_OPERATION.with_halt(true).0)?;
+        }
+        self.read_positions()
+    }
+
+    /// The CiA 402 quick stop command (controlword `0x0002`) to every drive, each tried even
+    /// when another does not answer (the first error is returned after all were tried): the
+    /// drives stop on their quick-stop ramp and go to *switch on disabled*, the set-point gone.
+    fn quick_stop(&mut self, _timeout: Duration) -> Result<[f64; 3], DeviceError> {
+        let mut first_error = None;
+        for k in 0..3 {
+            if let Err(e) = self.write_cw(k, Controlword::QUICK_STOP.0) {
+                tracing::warn!("table axis {}: quick stop not acknowledged: {e}", AXES[k]);
+                first_error.get_or_insert(e);
+            }
+        }
+        self.target_mm = None;
+        if let Some(e) = first_error {
+            return Err(e);
         }
         self.read_positions()
     }

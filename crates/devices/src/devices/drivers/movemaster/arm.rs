@@ -22,7 +22,8 @@
 //! caller stops waiting (a fault elsewhere cancelled the motion: the controller has no stop
 //! command, so the arm goes on to its target), the move stays pending in the driver, and the
 //! next command first reads its outstanding `ER` reply (within the move's own timeout), so a
-//! reply is never taken for another command's.
+//! reply is never taken for another command's. A safe stop ([`Arm::stop`]) therefore sends
+//! nothing: it waits for the move in progress to end.
 
 use std::collections::VecDeque;
 use std::time::Duration;
@@ -541,6 +542,25 @@ impl<T: ByteTransport> Arm for MovemasterArm<T> {
 
     fn wait_moved(&mut self, slice: Duration) -> Result<bool, DeviceError> {
         self.finish_pending(slice)
+    }
+
+    /// The Movemaster's command language has no stop over RS-232 (the drive unit's STOP switch
+    /// and emergency stop are the operator's): the controller finishes the move it is in. So
+    /// this sends no further motion and waits, at most `timeout`, for the move in progress to
+    /// end (its `ER` reply, then the `WH` check), so that the arm is known at rest where the
+    /// driver says it is.
+    fn stop(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
+        let until = self.clock.now() + timeout;
+        while self.pending.is_some() {
+            let left = until.saturating_sub(self.clock.now());
+            if left.is_zero() {
+                return Ok(false);
+            }
+            if self.finish_pending(left)? {
+                break;
+            }
+        }
+        Ok(true)
     }
 
     fn commanded(&self) -> Option<Vec<f64>> {

@@ -2,11 +2,14 @@
 //!
 //! The pin touches the panel when the true panel centre (from the table's true motion and the
 //! physics) has risen to the true pin tip, with the tip over the sensitive area and the pin
-//! pointing down. From the touch on, the controller sends 6-byte packets with the touch flag
-//! every report period, the first one a panel latency after the touch; a packet reports where the
-//! pin touched, quantised to counts: cx = ⌊(u' + 66.5)·512/133⌋, cy = ⌊(v' + 40)·256/80⌋ where
+//! pointing down. From the touch on, the controller samples the contact every report period and
+//! sends each sample as a 6-byte packet with the touch flag a panel latency later (so the first
+//! packet comes a latency after the touch, and packets of a contact keep coming for a latency
+//! after the pin has lifted, as from the real controller); a packet reports where the pin
+//! touched, quantised to counts: cx = ⌊(u' + 66.5)·512/133⌋, cy = ⌊(v' + 40)·256/80⌋ where
 //! (u', v') is the offset from the panel centre along table x, y with the rig file's flip and
-//! shift undone (conventions §8). When the contact ends, one packet without the touch flag.
+//! shift undone (conventions §8). When the contact ends, one packet without the touch flag, a
+//! latency later too.
 //! Faults: a missed touch (no packets for the next contact), garbage bytes before the next
 //! packet, a corrupted checksum on the next packet.
 
@@ -36,7 +39,8 @@ pub struct PanelEmulator {
     checked_until: Duration,
     contact: Option<(u16, u16)>,
     suppressed: bool,
-    next_report: Option<Duration>,
+    /// The contact's next sample (a packet a latency later), while touching.
+    next_sample: Option<Duration>,
     out: VecDeque<(Duration, Vec<u8>)>,
 }
 
@@ -58,7 +62,7 @@ impl PanelEmulator {
             checked_until: Duration::ZERO,
             contact: None,
             suppressed: false,
-            next_report: None,
+            next_sample: None,
             out: VecDeque::new(),
         }
     }
@@ -142,20 +146,20 @@ impl PanelEmulator {
 
     fn advance(&mut self, now: Duration) {
         while self.checked_until < now {
-            // While touching, look for the end of the contact only up to the next periodic
-            // report: a report must never be sent for a moment after the contact ended.
+            // While touching, look for the end of the contact only up to the next sample: a
+            // report must never be sent for a moment after the contact ended.
             let touching = self.contact.is_some();
-            let horizon = match (touching, self.next_report) {
+            let horizon = match (touching, self.next_sample) {
                 (true, Some(next)) => next.min(now),
                 _ => now,
             };
             match self.find_change(self.checked_until, horizon, touching) {
                 None => {
                     self.checked_until = horizon;
-                    if let (Some(c), Some(next)) = (self.contact, self.next_report) {
+                    if let (Some(c), Some(next)) = (self.contact, self.next_sample) {
                         if next <= horizon {
-                            self.packet(next, true, c);
-                            self.next_report = Some(next + self.period());
+                            self.packet(next + self.latency(), true, c);
+                            self.next_sample = Some(next + self.period());
                         }
                     }
                 }
@@ -165,7 +169,7 @@ impl PanelEmulator {
                     if touching {
                         let c = self.contact.take().unwrap_or((0, 0));
                         self.packet(t + lat, false, c);
-                        self.next_report = None;
+                        self.next_sample = None;
                         self.suppressed = false;
                     } else if let Some(c) = self.touch_at(t) {
                         let z = lock(&self.table).position(t).z;
@@ -177,7 +181,7 @@ impl PanelEmulator {
                         }
                         self.contact = Some(c);
                         self.packet(t + lat, true, c);
-                        self.next_report = Some(t + lat + self.period());
+                        self.next_sample = Some(t + self.period());
                     }
                 }
             }
@@ -211,7 +215,9 @@ impl ByteEmulator for PanelEmulator {
         let report = if self.suppressed {
             None
         } else {
-            self.next_report.filter(|_| self.contact.is_some())
+            self.next_sample
+                .filter(|_| self.contact.is_some())
+                .map(|t| t + self.latency())
         };
         let change = self
             .find_change(now, horizon, self.contact.is_some())

@@ -27,6 +27,8 @@ pub struct PenMountPanel<T: ByteTransport> {
     counts: [u32; 2],
     decoder: PenMountDecoder,
     earlier: PanelStats,
+    /// The touch flag of the last packet decoded since the last clear (false before any).
+    touching: bool,
 }
 
 impl<T: ByteTransport> PenMountPanel<T> {
@@ -46,6 +48,7 @@ impl<T: ByteTransport> PenMountPanel<T> {
             counts,
             decoder: PenMountDecoder::new(),
             earlier: PanelStats::default(),
+            touching: false,
         }
     }
 
@@ -64,15 +67,22 @@ impl<T: ByteTransport> PenMountPanel<T> {
             let remaining = deadline.saturating_sub(self.clock.now());
             match self.io.read(&mut buf, remaining) {
                 Ok(n) => {
+                    // Every packet read updates the contact state (a release right behind the
+                    // touch counts), the first touch is the answer.
+                    let mut first = None;
                     for p in self.decoder.push(buf.get(..n).unwrap_or(&[])) {
-                        if p.touch {
+                        self.touching = p.touch;
+                        if p.touch && first.is_none() {
                             let (u_mm, v_mm) = self.to_mm(p.x, p.y);
-                            return Ok(Some(Touch {
+                            first = Some(Touch {
                                 counts: [p.x, p.y],
                                 u_mm,
                                 v_mm,
-                            }));
+                            });
                         }
+                    }
+                    if first.is_some() {
+                        return Ok(first);
                     }
                 }
                 Err(TransportError::Timeout { .. }) => return Ok(None),
@@ -123,7 +133,34 @@ impl<T: ByteTransport> Panel for PenMountPanel<T> {
         }
         self.earlier = self.stats();
         self.decoder = PenMountDecoder::new();
+        self.touching = false;
         Ok(())
+    }
+
+    fn wait_lifted(&mut self, timeout: Duration) -> Result<bool, DeviceError> {
+        let deadline = self.clock.now() + timeout;
+        let mut buf = [0u8; 64];
+        while self.touching {
+            let remaining = deadline.saturating_sub(self.clock.now());
+            if remaining.is_zero() {
+                return Ok(false);
+            }
+            match self.io.read(&mut buf, remaining) {
+                Ok(n) => {
+                    if let Some(p) = self.decoder.push(buf.get(..n).unwrap_or(&[])).last() {
+                        self.touching = p.touch;
+                    }
+                }
+                Err(TransportError::Timeout { .. }) => return Ok(false),
+                Err(source) => {
+                    return Err(DeviceError::Transport {
+                        device: DeviceName::Panel,
+                        source,
+                    })
+                }
+            }
+        }
+        Ok(true)
     }
 
     fn wait_touch(&mut self, timeout: Duration) -> Result<Touch, DeviceError> {
