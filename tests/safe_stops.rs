@@ -5,7 +5,8 @@
 //! answering SDOs ends the session as a fault, resumable; a few per cent of SDO frames lost
 //! neither stop the bring-up nor the session; drives answering late get their contacts
 //! refused and repeated, the latency kept in the recording, and a bus late for every contact
-//! ends the session as a fault.
+//! ends the session as a fault; a touch that comes while the approach's move is still being
+//! started, or whose first packet is corrupt, costs the contact instead of biasing it.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

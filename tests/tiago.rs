@@ -199,7 +199,7 @@ fn diagnose_counts_equations_for_small_sessions() {
     assert_eq!(report.fit.measurements, 22);
     assert_eq!(report.fit.geometric_parameters, 30);
     small.rows.truncate(15);
-    // 45 equations leave 14 residual dof: too few, and the message counts equations.
+    // 45 equations leave 15 residual dof: too few, and the message counts equations.
     let e = diagnose(&rig, &small, &Options::default()).unwrap_err();
     let msg = e.to_string();
     assert!(

@@ -82,7 +82,7 @@ pub fn run(a: Args) -> Result<()> {
     let (figures, text) =
         calibration::evaluate_files(&a.model, &scenario, &paths, &a.trace_ceps, out)?;
     print!("{text}");
-    let failures = calibration::evaluate::first_failures(&a.model, &paths, &figures)?;
+    let failures = calibration::path_figures::first_failures(&a.model, &paths, &figures)?;
     for f in &failures {
         eprintln!(
             "{}: {} of {} points not compensated; the first, point {} of {}: {}",

@@ -239,3 +239,93 @@ pub fn evaluate_files(
     }
     Ok((figures, text))
 }
+
+/// The first point of a model where compensation failed, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FirstFailure {
+    /// The model's name (`conventional`, `regions`, …).
+    pub model: String,
+    /// The path's name.
+    pub path: String,
+    /// The point's index along the path (0-based).
+    pub point: usize,
+    /// The compensation's error.
+    pub reason: String,
+    /// Points of the model that failed, over every path.
+    pub failed: usize,
+    /// Points evaluated, over every path.
+    pub points: usize,
+}
+
+impl FirstFailure {
+    /// True when the model compensated no point at all.
+    pub fn none_compensated(&self) -> bool {
+        self.failed >= self.points
+    }
+}
+
+/// For each model of `model` that failed somewhere along `paths` (per [`PathFigures`] of an
+/// evaluation, `figures`), the first point where it failed and the compensation's reason:
+/// what `rigcal evaluate` reports beside the count.
+///
+pub fn first_failures(
+    model: &Path,
+    paths: &[PathSpec],
+    figures: &[PathFigures],
+) -> Result<Vec<FirstFailure>, CalibrationError> {
+    let mut totals: Vec<(String, usize, usize)> = Vec::new();
+    for (f, path) in figures.iter().zip(paths) {
+        for m in f.methods.iter().filter(|m| m.method != "uncalibrated") {
+            match totals.iter_mut().find(|(name, _, _)| *name == m.method) {
+                Some(t) => {
+                    t.1 += m.failures;
+                    t.2 += path.points.len();
+                }
+                None => totals.push((m.method.clone(), m.failures, path.points.len())),
+            }
+        }
+    }
+    totals.retain(|(_, failed, _)| *failed > 0);
+    if totals.is_empty() {
+        return Ok(Vec::new());
+    }
+    let loaded = rigcal_model::model::ModelFile::load(model)?;
+    let rig = &loaded.rig;
+    let models = loaded.file.error_models(rig, model)?;
+    let nominal = rigcal_core::kinematics::ErrorParams::zeros(
+        rigcal_core::kinematics::Robot::layout(&rig.chain),
+    );
+    let opts = rigcal_model::compensation::CompensationOptions::default();
+    let mut out = Vec::new();
+    for (name, failed, points) in totals {
+        let Some((_, m)) = models.iter().find(|(n, _)| *n == name) else {
+            continue;
+        };
+        let first = paths.iter().find_map(|path| {
+            path.points.iter().enumerate().find_map(|(k, q)| {
+                let target = rigcal_core::kinematics::Robot::position(&rig.chain, q, &nominal);
+                rigcal_model::compensation::compensate_from(
+                    &rig.chain,
+                    m.as_ref(),
+                    &target,
+                    rig.held(),
+                    q.clone(),
+                    &opts,
+                )
+                .err()
+                .map(|e| (path.name.clone(), k, e.to_string()))
+            })
+        });
+        let (path, point, reason) =
+            first.unwrap_or_else(|| (String::new(), 0, "not reproduced".to_string()));
+        out.push(FirstFailure {
+            model: name,
+            path,
+            point,
+            reason,
+            failed,
+            points,
+        });
+    }
+    Ok(out)
+}
