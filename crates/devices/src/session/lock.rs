@@ -173,25 +173,11 @@ pub(crate) fn utc_now_rfc3339() -> String {
     rfc3339(secs)
 }
 
-/// Seconds since 1970 in RFC 3339, UTC (the civil date from the day count: H. Hinnant's
-/// `civil_from_days`).
+/// Seconds since 1970 in RFC 3339, UTC.
 fn rfc3339(secs: u64) -> String {
-    let days = i64::try_from(secs / 86_400).unwrap_or(0);
-    let rem = secs % 86_400;
-    let z = days + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1_460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let day = doy - (153 * mp + 2) / 5 + 1;
-    let month = if mp < 10 { mp + 3 } else { mp - 9 };
-    let year = yoe + era * 400 + i64::from(month <= 2);
     format!(
-        "{year:04}-{month:02}-{day:02}T{:02}:{:02}:{:02}Z",
-        rem / 3_600,
-        rem % 3_600 / 60,
-        rem % 60
+        "{}Z",
+        rigcal_core::recording::import::time::iso_of(secs as f64)
     )
 }
 

@@ -309,8 +309,9 @@ fn days_from_civil(y: i64, m: u32, d: u32) -> i64 {
     era * 146_097 + doe - 719_468
 }
 
-/// `YYYY-MM-DDThh:mm:ss` of seconds since 1970-01-01 (whole seconds).
-fn iso_of(t: f64) -> String {
+/// `YYYY-MM-DDThh:mm:ss` of seconds since 1970-01-01 UTC (whole seconds; the civil date from
+/// the day count, H. Hinnant's `civil_from_days`). Session lock files and start times use it too.
+pub fn iso_of(t: f64) -> String {
     let secs = t.floor() as i64;
     let days = secs.div_euclid(86_400);
     let rem = secs.rem_euclid(86_400);
