@@ -378,6 +378,56 @@ fn reproduce_writes_fig7_learning_curves_that_fall() {
     assert!(!ok && err.contains("figure 3 is not reproduced"), "{err}");
 }
 
+/// `reproduce seed001 --seeds`: each seed's figures are the single-seed run's (read back from
+/// its printed table), and the summary counts them per paper table.
+#[test]
+fn reproduce_over_seeds_summarises_the_single_seed_tables() {
+    let dir = tempfile::tempdir().unwrap();
+    let (ok, out, err) = rigcal(&[
+        "reproduce",
+        "seed001",
+        "--table",
+        "18",
+        "--seeds",
+        "1,2",
+        "--out",
+        s(dir.path()),
+    ]);
+    assert!(ok, "{err}");
+    assert!(out.contains("over seeds 1–2 (2 runs)"), "{out}");
+    for table in ["17", "18"] {
+        assert!(
+            out.lines()
+                .any(|l| l.trim_start().starts_with(table) && l.contains("/10 (")),
+            // 6 row pairs, one with equal paper values (δLc/2 δLr/2: 0.10 both): 5 × 2 seeds.
+            "no line for Table {table} with 5 row pairs × 2 seeds compared: {out}"
+        );
+    }
+    let csv = std::fs::read_to_string(dir.path().join("seed001-seeds.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 1 + 2 * 12, "{csv}");
+    // Seed 2's δLc δLr=0 scheme 4 E_ac mean, as the single-seed run prints it (3 decimals).
+    let (ok, single, err) = rigcal(&["reproduce", "seed001", "--table", "18", "--seed", "2"]);
+    assert!(ok, "{err}");
+    let printed: f64 = single
+        .lines()
+        .find(|l| l.contains("δLc δLr=0") && l.contains("scheme 4 (Table 18)"))
+        .and_then(|l| l.split_whitespace().nth(6))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no δLr=0 scheme 4 row: {single}"));
+    let summarised: f64 = csv
+        .lines()
+        .find(|l| l.contains("δLc δLr=0 direct-4 E_ac mean\",2,"))
+        .and_then(|l| l.rsplit(',').nth(2))
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no seed-2 row: {csv}"));
+    assert!(
+        (printed - summarised).abs() <= 0.0005,
+        "{printed} vs {summarised}"
+    );
+    let (ok, _, err) = rigcal(&["reproduce", "seed001", "--seeds", "1-2", "--figure", "7"]);
+    assert!(!ok && err.contains("tables only"), "{err}");
+}
+
 /// The shared option groups (`--rig`, `--recording`, `--out`) keep each command's own help text
 /// and the usage line's order.
 #[test]

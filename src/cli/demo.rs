@@ -1,7 +1,7 @@
 //! `rigcal demo`: the whole job on simulated devices at seed 000's settings
 //! ([`rigcal_paper::demo`], which says what it runs): the flags, the progress and the printing.
 
-use super::options::TrainingArg;
+use super::options::{parse_seeds, SeedList, TrainingArg};
 use anyhow::{Context, Result};
 use rigcal_paper::demo::{DemoEvent, DemoOptions, PathSet};
 use rigcal_paper::preset::SEED_000;
@@ -58,32 +58,6 @@ pub struct Args {
     /// at each seed instead of section 6; out/seeds-rig by default.
     #[arg(long, requires = "seeds")]
     rig: bool,
-}
-
-/// The seeds of `--seeds`, as one value.
-#[derive(Debug, Clone)]
-struct SeedList(Vec<u64>);
-
-/// `A-B` (inclusive) or a comma-separated list.
-fn parse_seeds(s: &str) -> Result<SeedList, String> {
-    let bad = |e: std::num::ParseIntError| format!("{s}: {e} (give `1-20` or `3,8,10`)");
-    let seeds: Vec<u64> = match s.split_once('-') {
-        Some((a, b)) => {
-            let (a, b) = (
-                a.trim().parse().map_err(bad)?,
-                b.trim().parse().map_err(bad)?,
-            );
-            (a..=b).collect()
-        }
-        None => s
-            .split(',')
-            .map(|x| x.trim().parse().map_err(bad))
-            .collect::<Result<_, _>>()?,
-    };
-    if seeds.is_empty() {
-        return Err(format!("{s}: no seed (give `1-20` or `3,8,10`)"));
-    }
-    Ok(SeedList(seeds))
 }
 
 pub fn run(a: Args) -> Result<()> {

@@ -209,6 +209,38 @@ pub(crate) fn three_numbers(text: &str) -> Result<[f64; 3], String> {
     three(text, "numbers")
 }
 
+/// The seeds of `--seeds`, as one value.
+#[derive(Debug, Clone)]
+pub(crate) struct SeedList(pub(crate) Vec<u64>);
+
+/// Seeds one sweep may run: a typo such as `1-20000000` is refused rather than run for a year.
+const MAX_SEEDS: u64 = 10_000;
+
+/// `A-B` (inclusive) or a comma-separated list.
+pub(crate) fn parse_seeds(s: &str) -> Result<SeedList, String> {
+    let bad = |e: std::num::ParseIntError| format!("{s}: {e} (give `1-20` or `3,8,10`)");
+    let seeds: Vec<u64> = match s.split_once('-') {
+        Some((a, b)) => {
+            let (a, b): (u64, u64) = (
+                a.trim().parse().map_err(bad)?,
+                b.trim().parse().map_err(bad)?,
+            );
+            if b.saturating_sub(a) >= MAX_SEEDS {
+                return Err(format!("{s}: more than {MAX_SEEDS} seeds"));
+            }
+            (a..=b).collect()
+        }
+        None => s
+            .split(',')
+            .map(|x| x.trim().parse().map_err(bad))
+            .collect::<Result<_, _>>()?,
+    };
+    if seeds.is_empty() {
+        return Err(format!("{s}: no seed (give `1-20` or `3,8,10`)"));
+    }
+    Ok(SeedList(seeds))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,9 +1,10 @@
 //! `rigcal reproduce seed001 --table N`: seed 001's tables beside our numbers.
 
-use anyhow::{bail, Result};
+use super::options::{parse_seeds, SeedList};
+use anyhow::{bail, Context, Result};
 use rigcal_model::neural::network::Method;
-use rigcal_paper::reproduce::seed001::{reproduce, ReproOptions, TABLE5_POSES};
-use std::path::PathBuf;
+use rigcal_paper::reproduce::seed001::{reproduce, Audit, ReproOptions, TABLE5_POSES};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `rigcal reproduce`.
 #[derive(Debug, clap::Args)]
@@ -34,8 +35,14 @@ pub struct Args {
     #[arg(long, default_value_t = 10)]
     pub hidden: usize,
     /// Seed of poses, random errors and weights.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, conflicts_with = "seeds")]
     pub seed: u64,
+    /// Run the tables at every seed of `A-B` or `3,8,10` and print, per paper table, each
+    /// figure as ours ÷ paper (median, share within 10×, worst) and how often the paper's order
+    /// of the schemes holds, instead of the tables themselves (with --out: DIR/seed001-seeds.txt
+    /// and .csv, one row per figure and seed).
+    #[arg(long, value_name = "SEEDS", value_parser = parse_seeds)]
+    seeds: Option<SeedList>,
     /// Write each table to DIR/seed001-table-N.txt.
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -57,8 +64,44 @@ pub fn run(a: Args) -> Result<()> {
         ..ReproOptions::default()
     };
     let out = a.out.as_deref();
+    if let Some(SeedList(seeds)) = a.seeds {
+        if !a.figures.is_empty() {
+            bail!("--seeds runs tables only: drop --figure");
+        }
+        return audit(&seeds, &a.tables, &o, a.hidden, out);
+    }
     reproduce(&a.tables, &a.figures, &o, a.hidden, out, &mut |t| {
         print!("{t}")
     })?;
+    Ok(())
+}
+
+/// `--seeds`: the tables at every seed, summarised per paper table.
+fn audit(
+    seeds: &[u64],
+    tables: &[u32],
+    o: &ReproOptions,
+    hidden: usize,
+    out: Option<&Path>,
+) -> Result<()> {
+    let mut done = 0;
+    let audit = Audit::run(seeds, tables, o, hidden, &mut |seed| {
+        done += 1;
+        eprintln!("seed {seed} done ({done}/{})", seeds.len());
+    })?;
+    let text = audit.text();
+    print!("{text}");
+    if let Some(dir) = out {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        for (name, body) in [
+            ("seed001-seeds.txt", text),
+            ("seed001-seeds.csv", audit.csv()),
+        ] {
+            let file = dir.join(name);
+            std::fs::write(&file, body)
+                .with_context(|| format!("cannot write {}", file.display()))?;
+            println!("wrote {}", file.display());
+        }
+    }
     Ok(())
 }

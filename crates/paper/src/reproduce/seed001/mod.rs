@@ -11,8 +11,10 @@
 //! The poses every table trains and validates on are drawn in [`poses`]; training a scheme and
 //! measuring it is [`runs`]. Choices where the paper is silent are stated in the robots' modules
 //! and in [`Table::notes`]. Everything is deterministic from the seed. Which tables to run and
-//! writing them to files is [`selection`].
+//! writing them to files is [`selection`]; the same tables over many seeds, each figure as a
+//! ratio to the paper's and the paper's order of the schemes kept or not, is [`audit`].
 
+pub mod audit;
 pub mod learning_curves;
 pub mod poses;
 pub mod random_errors;
@@ -22,6 +24,7 @@ pub mod scara3_direct;
 pub mod selection;
 pub mod stewart_platform;
 
+pub use audit::{Audit, TableSummary};
 pub use learning_curves::{fig7, Curve, Fig7, FIG7_CHECKPOINTS};
 pub use poses::{scara2_grid, scara2_samples, scara2_spread, scara3_samples, stewart_samples};
 pub use random_errors::{table7, TABLE7_MAX_HIDDEN};
