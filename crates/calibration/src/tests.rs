@@ -323,6 +323,41 @@ fn a_planning_note_names_the_design_poses_only_when_not_the_papers() {
         other.ends_with("--unmeasurable-at 1.5,2,-3 --design-poses 50"),
         "{other}"
     );
+    // Section 7's acceptance and test plan (set through the library) are part of what a resume
+    // must match: they decide which regions split, so which points come next.
+    let sec7 = planning_note(
+        files,
+        &CalibrationOptions {
+            confidence_z: 0.0,
+            unmeasurable_halves: true,
+            test_plan: rigcal_model::division::TestPlan {
+                first_stage: 9,
+                reuse: true,
+                refit: true,
+            },
+            ..CalibrationOptions::default()
+        },
+    );
+    assert!(
+        sec7.ends_with(
+            " --unmeasurable-halves --confidence-z 0 --test-plan first-stage=9,reuse=true,refit=true"
+        ),
+        "{sec7}"
+    );
+    let other_plan = planning_note(
+        files,
+        &CalibrationOptions {
+            confidence_z: 0.0,
+            unmeasurable_halves: true,
+            test_plan: rigcal_model::division::TestPlan {
+                first_stage: 9,
+                reuse: false,
+                refit: true,
+            },
+            ..CalibrationOptions::default()
+        },
+    );
+    assert_ne!(sec7, other_plan);
 }
 
 #[test]

@@ -70,6 +70,21 @@ fn planning_options(files: PlanningFiles<'_>, opts: &CalibrationOptions) -> Stri
     if let Some(depth) = opts.unmeasurable_depth {
         s.push_str(&format!(" --unmeasurable-depth {depth}"));
     }
+    // The acceptance and the test plan decide which regions split, so which points come next
+    // (section 7 sets them through the library; the command line has the defaults).
+    if opts.unmeasurable_halves {
+        s.push_str(" --unmeasurable-halves");
+    }
+    if opts.confidence_z != rigcal_model::division::CONFIDENCE_Z {
+        s.push_str(&format!(" --confidence-z {}", opts.confidence_z));
+    }
+    if opts.test_plan != rigcal_model::division::TestPlan::default() {
+        let t = opts.test_plan;
+        s.push_str(&format!(
+            " --test-plan first-stage={},reuse={},refit={}",
+            t.first_stage, t.reuse, t.refit
+        ));
+    }
     s
 }
 
