@@ -148,8 +148,7 @@ impl Audit {
 
     /// Scheme pairs in the paper's order, and pairs compared, for paper table `table`.
     fn order_kept(&self, table: u32) -> (usize, usize) {
-        // (seed, group) → [(scheme, ours, paper)]
-        let mut groups: BTreeMap<(u64, String), Vec<(String, f64, f64)>> = BTreeMap::new();
+        let mut groups: BTreeMap<(u64, String), Vec<Member>> = BTreeMap::new();
         for s in self.samples.iter().filter(|s| s.table == table) {
             if !is_accuracy(&s.label) {
                 continue;
@@ -270,6 +269,9 @@ impl Audit {
         s
     }
 }
+
+/// A scheme in a group of figures that differ only by the scheme: (scheme, ours, paper).
+type Member = (String, f64, f64);
 
 /// The paper table a figure of reproduced table `key` belongs to.
 fn paper_table(key: u32, label: &str) -> u32 {
