@@ -204,7 +204,7 @@ fn diagnosis(c: &mut Criterion) {
     let mut g = c.benchmark_group("diagnosis");
     g.sample_size(10);
     g.bench_function("diagnose 600 rows", |b| {
-        b.iter(|| diagnose(&rig, &rec, &Options { heldout: vec![] }).expect("diagnose"))
+        b.iter(|| diagnose(&rig, &rec, &Options::default()).expect("diagnose"))
     });
     g.finish();
 }

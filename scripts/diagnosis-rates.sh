@@ -18,3 +18,7 @@ run diagnose table_rig_null_rate
 run diagnose table_rig_naming_rate
 run diagnose_tracker tracker_rates
 run outliers clean_recording_false_flag_rate
+# The UR10 held-out check of issue 35, when the prepared data are there (docs/diagnosis.md).
+if [ -n "${RIGCAL_UR10_DIR:-}" ]; then
+    run discovery ur10_claimed_effects_do_not_raise_the_held_out_error
+fi

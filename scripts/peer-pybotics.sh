@@ -4,11 +4,13 @@
 # Install the peer once (Python 3.8+; pybotics pulls numpy, scipy and attrs):
 #     pip install pybotics          # tested with pybotics 3.1.2, scipy 1.x
 # Then, from the repository root:
-#     scripts/peer-pybotics.sh [N_POSES]     # default 2200
+#     scripts/peer-pybotics.sh [N_POSES] [SCENARIO...]   # default 2200, sim/paper-sim-noise.toml
+# e.g. the structured recording of issue 33 beside the white-noise one:
+#     scripts/peer-pybotics.sh 2200 sim/paper-sim-noise.toml benches/fixtures/structured-warm-up-rv-m2.toml
 #
-# What it does: builds rigcal (release), simulates one N-pose recording on the RV-M2 with the
-# paper's errors and noise (sim/paper-sim-noise.toml, seed 2024), then times, as whole
-# processes and one run each side by side:
+# What it does: builds rigcal (release), simulates one N-pose recording on the RV-M2 per
+# scenario (seed 2024; the default is the paper's errors and noise), then times on each, as
+# whole processes and one run each side by side:
 #   1. `rigcal identify --level full` (analysis, fit, outlier search, model file);
 #   2. scripts/peer_pybotics.py: the same chain as a pybotics MDH robot, 15 parameters
 #      (world frame 6, link offsets/lengths/twists 8, tool length 1) fitted by
@@ -31,24 +33,28 @@ if [ -z "${RIGCAL:-}" ]; then
     RIGCAL=target/release/rigcal
 fi
 RIG=rigs/rv-m2-ideal.toml
-
-"$RIGCAL" simulate --rig "$RIG" --scenario sim/paper-sim-noise.toml --random "$N" \
-    --seed 2024 --out "$WORK/rec" >/dev/null
-echo "recording: $N poses ($WORK/rec/measurements.csv)"
-
 now() { date +%s.%N; }
-t0=$(now)
-"$RIGCAL" identify --rig "$RIG" --recording "$WORK/rec" --out "$WORK/model.json" \
-    >"$WORK/rigcal.txt"
-t1=$(now)
-python3 scripts/peer_pybotics.py "$WORK/rec/measurements.csv" >"$WORK/pybotics.txt"
-t2=$(now)
+shift || true
+SCENARIOS=("$@")
+[ ${#SCENARIOS[@]} -gt 0 ] || SCENARIOS=(sim/paper-sim-noise.toml)
 
-rigcal_s=$(echo "$t1 - $t0" | bc -l)
-peer_s=$(echo "$t2 - $t1" | bc -l)
-rigcal_rms=$(grep -m1 -o 'rms [0-9.]* mm' "$WORK/rigcal.txt" | tail -1 || true)
-printf '%-44s %8.3f s   %s\n' "rigcal identify (whole process)" "$rigcal_s" \
-    "$(grep -m1 -i 'after' "$WORK/rigcal.txt" || true)"
-printf '%-44s %8.3f s   %s\n' "pybotics least squares (whole process)" "$peer_s" \
-    "$(cat "$WORK/pybotics.txt")"
-printf 'ratio pybotics / rigcal: %.1f×\n' "$(echo "$peer_s / $rigcal_s" | bc -l)"
+for SCENARIO in "${SCENARIOS[@]}"; do
+    REC="$WORK/$(basename "$SCENARIO" .toml)"
+    "$RIGCAL" simulate --rig "$RIG" --scenario "$SCENARIO" --random "$N" \
+        --seed 2024 --out "$REC" >/dev/null
+    echo "== $SCENARIO: $N poses"
+    t0=$(now)
+    "$RIGCAL" identify --rig "$RIG" --recording "$REC" --out "$WORK/model.json" \
+        >"$WORK/rigcal.txt" 2>&1
+    t1=$(now)
+    python3 scripts/peer_pybotics.py "$REC/measurements.csv" >"$WORK/pybotics.txt"
+    t2=$(now)
+
+    rigcal_s=$(echo "$t1 - $t0" | bc -l)
+    peer_s=$(echo "$t2 - $t1" | bc -l)
+    printf '%-44s %8.3f s   %s\n' "rigcal identify (whole process)" "$rigcal_s" \
+        "$(grep -m1 -i 'residual after' "$WORK/rigcal.txt" || true)"
+    printf '%-44s %8.3f s   %s\n' "pybotics least squares (whole process)" "$peer_s" \
+        "$(cat "$WORK/pybotics.txt")"
+    printf 'ratio pybotics / rigcal: %.1f×\n' "$(echo "$peer_s / $rigcal_s" | bc -l)"
+done

@@ -55,7 +55,7 @@ def read(path):
     qs, ps = [], []
     with open(path, newline="") as f:
         for row in csv.DictReader(f):
-            if row.get("status", "ok") != "ok":
+            if row.get("status", "ok") != "ok" or not row.get("x_mm"):
                 continue
             qs.append([float(row[f"q{j}_deg"]) for j in range(1, 6)])
             ps.append([float(row[c]) for c in ("x_mm", "y_mm", "z_mm")])

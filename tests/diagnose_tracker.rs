@@ -345,6 +345,7 @@ fn tracker_rates() {
             &rec,
             &Options {
                 heldout: vec![held],
+                ..Default::default()
             },
         )
         .expect("diagnose");

@@ -432,6 +432,103 @@ fn a_model_holding_a_non_finite_value_is_not_written() {
     assert!(!path.exists());
 }
 
+/// A model file written by hand (or by another tool) with a correction no kinematic fit of this
+/// rig may have is refused when read, as a fit beyond the bounds is refused when written.
+#[test]
+fn a_model_file_beyond_the_rigs_bounds_is_refused_when_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = Rig::load(Path::new(RIG)).unwrap();
+    let model = |value: f64| {
+        ModelFile::new(
+            &rig,
+            Provenance::default(),
+            ModelBody::Constant {
+                parameters: vec![ParamEntry {
+                    name: "theta1".into(),
+                    value,
+                    unit: "deg".into(),
+                    sigma: Some(0.1),
+                }],
+                fit: FitSummary {
+                    kappa_eq4: 1.0,
+                    before: ResidualStats::default(),
+                    after: ResidualStats::default(),
+                    sigma0_mm: 0.0,
+                    iterations: 0,
+                },
+            },
+        )
+    };
+    let (small, huge) = (dir.path().join("small.json"), dir.path().join("huge.json"));
+    model(0.5).save(&small).unwrap();
+    model(2000.0).save(&huge).unwrap();
+    assert!(ModelFile::load(&small).is_ok());
+    let e = ModelFile::load(&huge)
+        .err()
+        .expect("a 2000° offset was read");
+    let e = e.to_string();
+    assert!(
+        e.contains("Δθ1 = +2000") && e.contains("max_angle_correction_deg"),
+        "{e}"
+    );
+    let targets = dir.path().join("targets.csv");
+    std::fs::write(&targets, "x_mm,y_mm,z_mm\n250,0,300\n").unwrap();
+    let r = rigcal(&[
+        "compensate",
+        "--model",
+        s(&huge),
+        "--targets",
+        s(&targets),
+        "--out",
+        s(&dir.path().join("out.csv")),
+    ]);
+    assert!(!r.ok && r.err.contains("Δθ1 = +2000"), "{}", r.err);
+}
+
+/// A recording written by other means than `rigcal import` (its own format, but in metres) is
+/// refused by every command that reads it, with the likely cause, as import refuses one; the
+/// recording in millimetres with one gross cell is not (that is the outlier search's).
+#[test]
+fn a_recording_in_metres_is_refused_where_it_is_read_not_fitted() {
+    let dir = tempfile::tempdir().unwrap();
+    let clean = simulated(dir.path());
+    let metres = edited(&clean, &dir.path().join("metres"), |header, rows| {
+        for col in ["x_mm", "y_mm", "z_mm"] {
+            let c = column(header, col);
+            for r in rows.iter_mut() {
+                let v: f64 = r[c].parse().unwrap();
+                r[c] = format!("{}", v / 1000.0);
+            }
+        }
+    });
+    let model = dir.path().join("m.json");
+    for args in [
+        vec![
+            "identify",
+            "--rig",
+            RIG,
+            "--recording",
+            s(&metres),
+            "--out",
+            s(&model),
+        ],
+        vec!["diagnose", "--rig", RIG, "--recording", s(&metres)],
+    ] {
+        let r = rigcal(&args);
+        assert!(!r.ok, "{} accepted a recording in metres", args[0]);
+        assert!(
+            r.err.contains("does not fit rig") && r.err.contains("1000 times too small"),
+            "{}: {}",
+            args[0],
+            r.err
+        );
+    }
+    assert!(!model.exists());
+    let gross = planted(&clean, &dir.path().join("gross"), 7, "x_mm", "100000");
+    let r = identify(RIG, &gross, &model);
+    assert!(!r.err.contains("does not fit rig"), "{}", r.err);
+}
+
 // ---- 5. evaluate with failures ---------------------------------------------------------------
 
 #[test]
@@ -451,6 +548,12 @@ fn evaluate_prints_no_mean_over_zero_compensated_points_and_fails() {
         .find(|p| p["name"] == "a2")
         .expect("a2");
     p["value"] = serde_json::json!(5000.0);
+    // The embedded rig states bounds that admit it (a model read back is held to the rig's).
+    let rig = v["rig"]["toml"].as_str().expect("embedded rig").replace(
+        "[calibration]\n",
+        "[calibration]\nmax_length_correction_mm = 10000.0\n",
+    );
+    v["rig"]["toml"] = serde_json::json!(rig);
     let broken = dir.path().join("broken.json");
     std::fs::write(&broken, serde_json::to_string_pretty(&v).unwrap()).unwrap();
     let r = rigcal(&["evaluate", "--model", s(&broken), "--scenario", SCENARIO]);

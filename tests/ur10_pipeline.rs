@@ -8,75 +8,15 @@
 //! points alike (before the selection, its full fit on all 632 rows gave the marker z as
 //! 86 ± 22 mm, κ 6.2·10⁷, and the export wrote it).
 
+mod common;
+use common::ur10::{import, ok, rig as ur10_rig, s, DATA};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur10-landgraf");
-const JOINTS: &str =
-    "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint";
-
-fn rigcal(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rigcal"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn ok(args: &[&str]) -> String {
-    let o = rigcal(args);
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    assert!(o.status.success(), "rigcal {args:?}: {text}");
-    text
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-/// The rig from the shipped URDF and the subset of `series` (`A`…`D`) imported, in `dir`.
-fn setup(dir: &Path, series: &[(&str, &str)]) -> PathBuf {
-    let rig = dir.join("ur10.toml");
-    let urdf = format!("{DATA}/ur10.urdf");
-    ok(&[
-        "rig",
-        "from-urdf",
-        &urdf,
-        "--base",
-        "base_link",
-        "--tip",
-        "tool0",
-        "--out",
-        s(&rig),
-    ]);
-    for (name, file) in series {
-        let csv = format!("{DATA}/Series_{name}/{file}");
-        let out = dir.join(format!("rec-{name}"));
-        ok(&[
-            "import",
-            &csv,
-            "--rig",
-            s(&rig),
-            "--joints",
-            JOINTS,
-            "--point",
-            "measurement_x,measurement_y,measurement_z",
-            "--length-unit",
-            "mm",
-            "--angle-unit",
-            "rad",
-            "--orientation",
-            "measurement_rx,measurement_ry,measurement_rz",
-            "--euler",
-            "intrinsic-xyz",
-            "--orientation-unit",
-            "deg",
-            "--out",
-            s(&out),
-        ]);
+/// The rig from the shipped URDF and `series` (`A`…`D`) imported with orientations, in `dir`.
+fn setup(dir: &Path, series: &[&str]) -> PathBuf {
+    let rig = ur10_rig(dir);
+    for name in series {
+        import(dir, &rig, name, true);
     }
     rig
 }
@@ -103,7 +43,7 @@ fn origins(text: &str) -> std::collections::HashMap<String, ([f64; 3], [f64; 3])
 #[test]
 fn an_undetermined_parameter_is_reported_and_not_exported() {
     let dir = tempfile::tempdir().unwrap();
-    let rig = setup(dir.path(), &[("D", "measurements_iso_cubes.csv")]);
+    let rig = setup(dir.path(), &["D"]);
     let model = dir.path().join("model.json");
     let text = ok(&[
         "identify",
@@ -206,13 +146,7 @@ fn conventional_rms(v: &serde_json::Value) -> f64 {
 #[test]
 fn evaluate_recording_scores_each_model_and_refits_the_frame() {
     let dir = tempfile::tempdir().unwrap();
-    let rig = setup(
-        dir.path(),
-        &[
-            ("A", "measurements_grid.csv"),
-            ("C", "measurements_random_poses.csv"),
-        ],
-    );
+    let rig = setup(dir.path(), &["A", "C"]);
     let model = dir.path().join("model.json");
     ok(&[
         "identify",

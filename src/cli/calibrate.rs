@@ -56,6 +56,13 @@ pub struct Args {
     /// division whose measurements are then dropped; a session needs the depth given].
     #[arg(long, requires = "unmeasurable_at", value_name = "N")]
     pub unmeasurable_depth: Option<usize>,
+    /// Offline on a recording in an instrument's own frame (a tracker: the rig's measurement
+    /// frame free), which is registered first: which error parameters each region fits.
+    /// `all`: every parameter of the basis (seed 000's CEPs); `positioning`: the base's and the
+    /// positioning joints' (the first three moving joints), the wrist's and the marker's held
+    /// at the conventional fit's values in every region.
+    #[arg(long, value_enum, default_value_t = RegionParamsArg::All)]
+    pub region_params: RegionParamsArg,
     #[command(flatten)]
     pub settings: CalibrationArgs,
     /// Where to write the model (JSON).
@@ -67,6 +74,24 @@ pub struct Args {
     pub report: Option<PathBuf>,
 }
 
+/// `--region-params` ([`calibration::RegionParams`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum RegionParamsArg {
+    /// Every parameter of the identifiable basis.
+    All,
+    /// The base's and the positioning joints' only.
+    Positioning,
+}
+
+impl From<RegionParamsArg> for calibration::RegionParams {
+    fn from(a: RegionParamsArg) -> Self {
+        match a {
+            RegionParamsArg::All => Self::All,
+            RegionParamsArg::Positioning => Self::Positioning,
+        }
+    }
+}
+
 pub fn run(a: Args) -> Result<()> {
     let rig = rigcal_devices::config::load_rig(&a.rig)?;
     let opts = CalibrationOptions {
@@ -74,6 +99,7 @@ pub fn run(a: Args) -> Result<()> {
         learner: a.learner.into(),
         unmeasurable_at: a.unmeasurable_at,
         unmeasurable_depth: a.unmeasurable_depth,
+        region_params: a.region_params.into(),
         ..a.settings.clone().into()
     };
     let calibrated = match (&a.recording, &a.scenario, &a.session) {
@@ -84,7 +110,14 @@ pub fn run(a: Args) -> Result<()> {
                 observations: &observations,
                 label,
             };
-            calibrate(&rig, source, &opts)?
+            let c = calibrate(&rig, source, &opts)?;
+            // A recording in an instrument's frame was registered first: say how.
+            if let Some(notes) = &c.model.fitted_from.notes {
+                if let Some((_, registration)) = notes.split_once("; instrument frame") {
+                    println!("instrument frame{registration}");
+                }
+            }
+            c
         }
         (None, Some(scenario), _) => {
             let sc = rigcal_sim::world::Scenario::load(scenario, None)?;

@@ -44,8 +44,9 @@ pub struct Args {
     #[arg(long)]
     model: Option<PathBuf>,
     /// Held-out sessions not registered to this one (the tracker or motion-capture frame moved
-    /// between days): the geometry and the named effects fitted here are kept, the measurement
-    /// frame refitted on each, and the RMS with and without the effects printed.
+    /// between days): an effect that raises their RMS (frame refitted) is not named; the
+    /// geometry and the named effects fitted here are kept, the measurement frame refitted on
+    /// each, and the RMS with and without the effects printed.
     #[arg(long, num_args = 1..)]
     heldout_session: Vec<PathBuf>,
     /// Refit the marker too on each held-out session.
@@ -65,18 +66,23 @@ pub fn run(a: Args) -> Result<()> {
         .iter()
         .map(|p| rigcal_calibration::read_recording(&rig, p))
         .collect::<Result<Vec<_>, _>>()?;
-    let report = diagnose(&rig, &rec, &Options { heldout })
-        .with_context(|| format!("diagnosing {}", path.display()))?;
+    let held = rigcal_calibration::read_heldout(&rig, &a.heldout_session)?;
+    let per = if a.refit_marker {
+        PerSession::FrameAndMarker
+    } else {
+        PerSession::Frame
+    };
+    let opts = Options {
+        heldout,
+        sessions: held.clone(),
+        per_session: per,
+    };
+    let report =
+        diagnose(&rig, &rec, &opts).with_context(|| format!("diagnosing {}", path.display()))?;
     println!("recording {}", path.display());
     print!("{}", report.text());
-    if !a.heldout_session.is_empty() {
+    if !held.is_empty() {
         // Held-out sessions with the frame refitted, geometry only and with the named effects.
-        let held = rigcal_calibration::read_heldout(&rig, &a.heldout_session)?;
-        let per = if a.refit_marker {
-            PerSession::FrameAndMarker
-        } else {
-            PerSession::Frame
-        };
         print!(
             "{}",
             physics_sessions_text(&rig, &rec, &report, &held, per)?

@@ -7,7 +7,7 @@ use rigcal_calibration::read_heldout;
 use rigcal_core::rig::Rig;
 use rigcal_model::diagnosis::sessions::PerSession;
 use rigcal_model::identification::Level as IdentificationLevel;
-use rigcal_model::identification::{identify, Identification, IdentifyOptions};
+use rigcal_model::identification::{identify, pose, Identification, IdentifyOptions};
 use rigcal_model::model::effects::ModelEffect;
 use std::path::{Path, PathBuf};
 
@@ -26,7 +26,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Level::Full)]
     level: Level,
     /// Held-out recordings (another day's session, say): RMS and max position error of the
-    /// fitted model on each.
+    /// fitted model on each, and the orientation error (degrees) when orientations were fitted.
     #[arg(long, num_args = 1..)]
     heldout: Vec<PathBuf>,
     /// Effects to fit beside the geometry and write into the model, which `compensate` and
@@ -48,6 +48,16 @@ pub struct Args {
     /// definition may have been re-made between sessions).
     #[arg(long)]
     refit_marker: bool,
+    /// Fit positions only, even when the recording has orientations (a 6-DoF probe's). By
+    /// default such a recording is fitted with its orientations as well: position and
+    /// orientation rows weighted by their stated σ (or one σ per block estimated from the
+    /// residuals), the marker frame a full pose.
+    #[arg(long)]
+    position_only: bool,
+    /// With orientations: weight every block by one σ estimated from the residuals, even where
+    /// the rows state their σ (when the stated σ leave out the model's own error, say).
+    #[arg(long, conflicts_with = "position_only")]
+    estimate_weights: bool,
     /// Also write a self-contained HTML report (parameters with σ, correlations, residuals,
     /// outliers, held-out figures) here.
     #[arg(long, value_name = "FILE.html")]
@@ -78,8 +88,28 @@ pub fn run(a: Args) -> Result<()> {
         heldout,
         ..rigcal_model::diagnosis::outliers::identify_options()
     };
-    let id = identify(&rig, &rec, a.level.into(), &options)?;
+    let mut id = identify(&rig, &rec, a.level.into(), &options)?;
     let recording = &a.recording.recording;
+    let pose = (!a.position_only && pose::has_orientation(&rec))
+        .then(|| {
+            let opts = pose::PoseOptions {
+                weights: if a.estimate_weights {
+                    pose::WeightChoice::Estimated
+                } else {
+                    pose::WeightChoice::StatedWhereGiven
+                },
+                ..Default::default()
+            };
+            pose::refit_with_orientation(
+                &rig,
+                &rec,
+                &mut id,
+                a.level.into(),
+                &options.heldout,
+                &opts,
+            )
+        })
+        .transpose()?;
     println!(
         "recording {}: {} rows, {} measurements used",
         recording.display(),
@@ -91,6 +121,23 @@ pub fn run(a: Args) -> Result<()> {
         eprintln!("warning: {w}; no rows removed");
     }
     print!("{}", identification_text(&id));
+    match &pose {
+        Some((fit, held)) => {
+            print!("{}", pose::pose_fit_text(fit));
+            print!("{}", pose::pose_heldout_text(held));
+        }
+        None => {
+            let kept = |i: usize| !id.outliers.iter().any(|o| o.index == i);
+            if let Some((_, o)) =
+                pose::orientation_of_position_fit(&id.chain, &id.fit.params, &rec, kept)
+            {
+                println!(
+                    "orientation residual (°, not fitted: --position-only; marker rotation in closed form): mean {:.4}  RMS {:.4}  max {:.4} over {} rows",
+                    o.mean_deg, o.rms_deg, o.max_deg, o.n
+                );
+            }
+        }
+    }
     if let Some(path) = &a.report {
         let source =
             rigcal_model::report::html::Source::of(&rig, &a.rig.rig, recording, rec.rows.len());
@@ -100,9 +147,34 @@ pub fn run(a: Args) -> Result<()> {
     if a.effects.is_empty() {
         return write_model(&rig, &id, recording, &a.out.out, &[]);
     }
+    // The geometry fitted without the effects stands alone (a URDF carries no effects).
+    let standalone = rigcal_model::model::entries(&rig, &id.fit);
     let (id, effects, text) = conventional::identify_effects(&rig, &rec, id, &a.effects)?;
     print!("{text}");
-    write_model(&rig, &id, recording, &a.out.out, &effects)
+    for h in &options.heldout {
+        // The held-out figure above is the geometry's alone: this one is the model's.
+        let errors = rigcal_model::model::effects::errors_with_effects(
+            &id.chain,
+            &id.fit.params,
+            &rig.link_masses,
+            &effects,
+            &h.recording,
+        );
+        let s = rigcal_model::identification::ResidualStats::of(&errors);
+        println!(
+            "held out {} with the effects: mean {:.4}  RMS {:.4}  max {:.4} mm over {} points",
+            h.name, s.mean_mm, s.rms_mm, s.max_mm, s.n
+        );
+    }
+    rigcal_model::identification::check_fit(&rig, &id.chain, &id.fit)?;
+    let mut file = conventional::model_file(&rig, &id, recording, &effects);
+    file.standalone_parameters = standalone;
+    file.save(&a.out.out)?;
+    println!(
+        "model written to {} (with the geometry fitted without the effects, for `export urdf`)",
+        a.out.out.display()
+    );
+    Ok(())
 }
 
 /// Training on one or more sessions with a frame each, held-out sessions with their frame

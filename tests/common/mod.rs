@@ -2,3 +2,4 @@
 
 pub mod shapes;
 pub mod synthetic8;
+pub mod ur10;

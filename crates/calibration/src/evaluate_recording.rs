@@ -18,12 +18,15 @@
 //! point as one rigid transform, so this is the exact least-squares frame whatever the model's
 //! parameters do from pose to pose.
 //!
-//! Orientation: the probe's rotation relative to the last link is not a model parameter
-//! (identification fits positions), so it is fitted per model and recording as the rotation
-//! C minimising Σ‖R_predicted·C − R_measured‖² (the projection of Σ R_predictedᵀ·R_measured
-//! onto the rotations); the error of a row is the angle of (R_predicted·C)ᵀ·R_measured.
+//! Orientation: `identify` fits the probe's rotation C relative to the last link when the
+//! recording has orientations ([`rigcal_model::identification::pose`]), but a model file does
+//! not carry it (and a probe may be re-mounted between campaigns), so it is fitted here per
+//! model and recording as the rotation C minimising Σ‖R_predicted·C − R_measured‖² (the
+//! projection of Σ R_predictedᵀ·R_measured onto the rotations), alike for every model; the
+//! error of a row is the angle of (R_predicted·C)ᵀ·R_measured, the one identification reports
+//! (mean, RMS and max in degrees, apart from the position's millimetres).
 
-use nalgebra::{Isometry3, Matrix3, Rotation3, UnitQuaternion, Vector3};
+use nalgebra::{Isometry3, Matrix3, UnitQuaternion, Vector3};
 use rigcal_core::kinematics::{ErrorParams, Robot, SerialChain, TransformId};
 use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
@@ -57,35 +60,10 @@ pub enum EvaluateRecordingError {
     },
 }
 
-/// Orientation error statistics (degrees).
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
-pub struct AngleStats {
-    /// Rows with an orientation.
-    pub n: usize,
-    /// Mean angle.
-    pub mean_deg: f64,
-    /// Root mean square angle.
-    pub rms_deg: f64,
-    /// Largest angle.
-    pub max_deg: f64,
-}
-
-impl AngleStats {
-    fn of(angles_rad: &[f64]) -> Self {
-        let n = angles_rad.len();
-        if n == 0 {
-            return Self::default();
-        }
-        let deg: Vec<f64> = angles_rad.iter().map(|a| a.to_degrees()).collect();
-        let nf = n as f64;
-        Self {
-            n,
-            mean_deg: deg.iter().sum::<f64>() / nf,
-            rms_deg: (deg.iter().map(|d| d * d).sum::<f64>() / nf).sqrt(),
-            max_deg: deg.iter().copied().fold(0.0, f64::max),
-        }
-    }
-}
+/// Orientation error statistics (degrees): identification's own
+/// ([`rigcal_model::identification::pose::OrientationStats`]), so `identify` and `evaluate`
+/// report one definition.
+pub use rigcal_model::identification::pose::OrientationStats as AngleStats;
 
 /// One model's score on the recording.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -206,23 +184,12 @@ fn orientation_errors(pairs: &[(UnitQuaternion<f64>, UnitQuaternion<f64>)]) -> A
     for (p, m) in pairs {
         sum += p.to_rotation_matrix().matrix().transpose() * m.to_rotation_matrix().matrix();
     }
-    let c = nearest_rotation(&sum);
+    let c = rigcal_model::identification::pose::nearest_rotation(&sum);
     let angles: Vec<f64> = pairs
         .iter()
         .map(|(p, m)| (p * c).rotation_to(m).angle())
         .collect();
-    AngleStats::of(&angles)
-}
-
-/// The rotation nearest a matrix (Frobenius): U·diag(1, 1, det(U·Vᵀ))·Vᵀ of its SVD.
-fn nearest_rotation(a: &Matrix3<f64>) -> UnitQuaternion<f64> {
-    let svd = a.svd(true, true);
-    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
-        return UnitQuaternion::identity();
-    };
-    let d = (u * v_t).determinant().signum();
-    let r = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * v_t;
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(r))
+    AngleStats::of_angles(&angles)
 }
 
 /// Scores the nominal kinematics and every model of the model file at `model_path` (read as

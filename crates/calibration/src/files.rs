@@ -2,6 +2,7 @@
 //! rig, and the scenario a twin replays a recording in.
 
 use rigcal_core::kinematics::Robot;
+use rigcal_core::recording::import::{check_scale, ScaleMismatch};
 use rigcal_core::recording::{Recording, RecordingError};
 use rigcal_core::rig::Rig;
 use rigcal_model::identification::HeldOut;
@@ -10,27 +11,51 @@ use std::path::{Path, PathBuf};
 
 /// A recording that could not be read for a rig.
 #[derive(Debug, thiserror::Error)]
-#[error("reading the recording {} for rig `{rig}` ({joints} joints)", path.display())]
-pub struct ReadRecordingError {
-    /// The recording's directory or CSV file.
-    pub path: PathBuf,
-    /// The rig's name.
-    pub rig: String,
-    /// The rig's joints.
-    pub joints: usize,
-    /// The cause (boxed: a recording error is large, and rare).
-    pub source: Box<RecordingError>,
+#[non_exhaustive]
+pub enum ReadRecordingError {
+    /// The files could not be read or parsed.
+    #[error("reading the recording {} for rig `{rig}` ({joints} joints)", path.display())]
+    Read {
+        /// The recording's directory or CSV file.
+        path: PathBuf,
+        /// The rig's name.
+        rig: String,
+        /// The rig's joints.
+        joints: usize,
+        /// The cause (boxed: a recording error is large, and rare).
+        source: Box<RecordingError>,
+    },
+    /// The recording's positions or orientations are not on the rig's scale (metres written as
+    /// millimetres, radians as degrees): refused before anything is fitted to them.
+    #[error("the recording {} does not fit rig `{rig}`: {source}", path.display())]
+    Scale {
+        /// The recording's directory or CSV file.
+        path: PathBuf,
+        /// The rig's name.
+        rig: String,
+        /// What does not fit, and the likely cause.
+        source: ScaleMismatch,
+    },
 }
 
 /// Reads the measured rows of the recording at `path` (a directory with measurements.csv, or a
-/// CSV file) for `rig`.
+/// CSV file) for `rig`, and checks that they are on the rig's scale ([`check_scale`]: the same
+/// check `rigcal import` makes, for recordings written by other means).
 pub fn read_recording(rig: &Rig, path: &Path) -> Result<Recording, ReadRecordingError> {
-    Recording::read_measured(path, rig.chain.joints()).map_err(|source| ReadRecordingError {
+    let rec = Recording::read_measured(path, rig.chain.joints()).map_err(|source| {
+        ReadRecordingError::Read {
+            path: path.to_path_buf(),
+            rig: rig.name.clone(),
+            joints: rig.chain.joints().len(),
+            source: Box::new(source),
+        }
+    })?;
+    check_scale(&rec, &rig.chain, None).map_err(|source| ReadRecordingError::Scale {
         path: path.to_path_buf(),
         rig: rig.name.clone(),
-        joints: rig.chain.joints().len(),
-        source: Box::new(source),
-    })
+        source,
+    })?;
+    Ok(rec)
 }
 
 /// Reads held-out recordings (or training sessions), each named by its path.

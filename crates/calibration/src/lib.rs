@@ -51,7 +51,7 @@ pub use through_session::{
     command_path_text, open_session, planning_note, refuse_other_options, resumed_requests,
     through_session, PlanningFiles, PlanningSession, SessionCalibrated,
 };
-pub use variable::{with_learner, WorldMeasurer};
+pub use variable::{with_learner, RegionParams, WorldMeasurer};
 
 use rigcal_core::rig::Rig;
 use rigcal_model::division::{DivisionError, Measurer, Selection, Space};
@@ -135,6 +135,10 @@ pub struct CalibrationOptions {
     /// tests ([`TestPlan`](rigcal_model::division::TestPlan)); the default, every test point
     /// afresh in one batch, is the paper's.
     pub test_plan: rigcal_model::division::TestPlan,
+    /// Offline on a recording in an instrument's frame (a free measurement frame, registered
+    /// first): which error parameters each region fits; the rest are held at the conventional
+    /// fit's values in every region ([`RegionParams`]).
+    pub region_params: RegionParams,
 }
 
 /// The learner tolerance of an FCMAC with position training when none is given. Chosen on data
@@ -168,6 +172,7 @@ impl Default for CalibrationOptions {
             unmeasurable_depth: None,
             unmeasurable_halves: false,
             test_plan: rigcal_model::division::TestPlan::default(),
+            region_params: RegionParams::default(),
         }
     }
 }

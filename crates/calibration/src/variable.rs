@@ -1,4 +1,11 @@
 //! The variable D-H parameter model: division → CEPs per region → learner → model file.
+//!
+//! A recording in an instrument's own frame (a free measurement frame: a tracker) is
+//! registered into the rig's world frame first ([`registered`]).
+
+mod registered;
+
+pub use registered::RegionParams;
 
 use super::{
     check_scenario_rig, design_basis, Calibrated, CalibrationError, CalibrationOptions,
@@ -58,8 +65,40 @@ pub(super) fn calibrate(
     progress: &mut dyn FnMut(usize, usize),
 ) -> Result<Calibrated, CalibrationError> {
     opts.check()?;
+    // Offline in an instrument's frame: the division runs on the registered points of a rig
+    // whose frame is fixed, and the frame is put back into the model at the end.
+    match source {
+        Source::Offline {
+            observations,
+            label,
+        } if registered::needs_registration(rig) && !observations.is_empty() => {
+            let r =
+                registered::Registration::of(rig, observations, opts.space, opts.region_params)?;
+            let source = Source::Offline {
+                observations: &r.observations,
+                label,
+            };
+            calibrate_on(rig, &r.rig, source, Some(&r), opts, progress)
+        }
+        source => calibrate_on(rig, rig, source, None, opts, progress),
+    }
+}
+
+/// [`calibrate`] on `rig` (the caller's, or the registered one of `registration`), the model
+/// file written for `model_rig` (the caller's).
+fn calibrate_on(
+    model_rig: &Rig,
+    rig: &Rig,
+    source: Source<'_>,
+    registration: Option<&registered::Registration>,
+    opts: &CalibrationOptions,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<Calibrated, CalibrationError> {
     let mode_name = source.mode_name();
-    let basis = design_basis(rig, opts);
+    let basis = match registration {
+        Some(r) => r.region_basis(&design_basis(rig, opts)),
+        None => design_basis(rig, opts),
+    };
     let mut division = DivisionOptions {
         space: opts.space,
         accuracy_mm: opts.accuracy_mm,
@@ -69,10 +108,14 @@ pub(super) fn calibrate(
         selection: opts.selection,
         reuse_parent: opts.reuse_parent,
         seed: opts.seed,
-        unmeasurable_halves: opts.unmeasurable_halves,
         learner_tolerance: opts.learner_tolerance_in_use(),
         confidence_z: opts.confidence_z,
         test_plan: opts.test_plan,
+        // A registered recording is divided over its own extent, and a half it holds too few
+        // points of is a region without measurements (its neighbours' CEPs, the learner
+        // generalises), not the end of its parent's split: a recording covers its box unevenly.
+        bounds: registration.map(|r| r.bounds),
+        unmeasurable_halves: opts.unmeasurable_halves || registration.is_some(),
         ..DivisionOptions::default()
     };
     let t0 = Instant::now();
@@ -134,7 +177,15 @@ pub(super) fn calibrate(
     figures.division_time = division_time;
     figures.learner_time = t1.elapsed();
     let region = figures.unmeasurable.as_ref().map(|u| u.bounds);
-    let model = model_file(rig, report, learner, opts, mode_name, label, region);
+    let mut model = model_file(model_rig, report, learner, opts, mode_name, label, region);
+    if let Some(r) = registration {
+        r.restore(&mut model);
+        let note = r.text(opts.space);
+        model.fitted_from.notes = Some(match model.fitted_from.notes.take() {
+            Some(n) => format!("{n}; {note}"),
+            None => note,
+        });
+    }
     Ok(Calibrated {
         model,
         figures: Figures::Division(figures),
@@ -290,9 +341,15 @@ fn unmeasurable_region(
     at: [f64; 3],
 ) -> Result<UnmeasurableFigures, CalibrationError> {
     let x = division_point(opts.space, at);
-    let full = DivisionSpace::new(rig, opts.space)
-        .map_err(rigcal_model::division::DivisionError::from)?
-        .full;
+    // The box divided: a registered recording's own extent, else the rig's workspace.
+    let full = match division.bounds {
+        Some(b) => b,
+        None => {
+            DivisionSpace::new(rig, opts.space)
+                .map_err(rigcal_model::division::DivisionError::from)?
+                .full
+        }
+    };
     if !full.holds(&x) {
         return Err(CalibrationError::Option {
             option: "--unmeasurable-at",

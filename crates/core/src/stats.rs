@@ -178,9 +178,26 @@ pub fn mad_sigma(r: &[Vector3<f64>]) -> f64 {
     if v.is_empty() {
         return 0.0;
     }
-    let med = median(&mut v);
+    let med = median_unordered(&mut v);
     let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
-    1.4826 * median(&mut dev)
+    1.4826 * median_unordered(&mut dev)
+}
+
+/// [`median`] by selection, leaving `v` unordered: the same value in O(n) rather than a sort
+/// (the outlier searches take it once per removal).
+fn median_unordered(v: &mut [f64]) -> f64 {
+    let n = v.len();
+    if n == 0 {
+        return f64::NAN;
+    }
+    let (below, mid, _) = v.select_nth_unstable_by(n / 2, f64::total_cmp);
+    let mid = *mid;
+    if n % 2 == 1 {
+        mid
+    } else {
+        let lower = below.iter().copied().max_by(f64::total_cmp).unwrap_or(mid);
+        0.5 * (lower + mid)
+    }
 }
 
 /// The median of `v`, sorted in place (by `f64::total_cmp`); NaN for an empty slice.
@@ -342,6 +359,20 @@ mod tests {
         assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
         assert_eq!(median(&mut [7.0]), 7.0);
         assert!(median(&mut []).is_nan());
+    }
+
+    #[test]
+    fn the_median_by_selection_equals_the_sorted_median() {
+        for n in 1..40usize {
+            let v: Vec<f64> = (0..n)
+                .map(|i| ((i * 37 + 11) % 17) as f64 - 0.5 * i as f64)
+                .collect();
+            assert_eq!(
+                median_unordered(&mut v.clone()),
+                median(&mut v.clone()),
+                "n = {n}"
+            );
+        }
     }
 
     #[test]

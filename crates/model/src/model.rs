@@ -216,6 +216,12 @@ pub struct ModelFile {
     /// compensation undoes; absent in older files and in geometric-only models.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub effects: Vec<effects::ModelEffect>,
+    /// When `effects` is not empty: the geometry fitted without them, which stands alone where
+    /// the effects cannot go (`rigcal export urdf`: a URDF carries geometry only, and the
+    /// geometry fitted beside the effects is worse than this one without them). Absent in
+    /// older files and in models without effects.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub standalone_parameters: Vec<ParamEntry>,
     /// The covariance of the fitted (conventional) parameters, in file units, when known.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub covariance: Option<Covariance>,
@@ -354,6 +360,7 @@ impl ModelFile {
             model,
             outliers: Vec::new(),
             effects: Vec::new(),
+            standalone_parameters: Vec::new(),
             covariance: None,
             undetermined: Vec::new(),
         }
@@ -554,6 +561,7 @@ pub fn params_from_entries(
 ) -> Result<ErrorParams, ModelError> {
     let layout = rig.chain.layout();
     let mut e = ErrorParams::zeros(layout);
+    let mut given = Vec::with_capacity(entries.len());
     for p in entries {
         let Some(id) = layout.find(&p.name) else {
             return Err(ModelError::Format {
@@ -583,8 +591,20 @@ pub fn params_from_entries(
         }
         if let Some(i) = layout.index_of(id) {
             e.set(i, id.kind.from_file_units(p.value));
+            given.push(i);
         }
     }
+    // The bounds a fit is held to hold for a file read back too: a hand-edited or foreign
+    // model with a 2 000° offset would otherwise compensate every target by it.
+    crate::identification::checks::check_parameters(rig, &rig.chain, &e, &given).map_err(|d| {
+        ModelError::Format {
+            path: path.to_path_buf(),
+            reason: format!(
+                "{} for rig `{}` (a model read back is held to the bounds a fit is held to): refit, or state larger bounds in the rig file's [calibration]",
+                d.what, rig.name
+            ),
+        }
+    })?;
     Ok(e)
 }
 

@@ -255,6 +255,30 @@ impl SerialChain {
         self.frame_before_joint(q, e, usize::MAX)
     }
 
+    /// The measured point, the tool frame's rotation and their Jacobian with respect to every
+    /// error parameter, all in the measurement frame (as [`Robot::position`] and
+    /// [`SerialChain::tool_pose`]): rows 0–2 of the 6 × L matrix are the point's columns (mm per
+    /// unit), rows 3–5 the tool frame's angular change per unit of the parameter (the axis of
+    /// a rotation parameter in the measurement frame, zero for a translation; rad per unit), so
+    /// R(e + δ·eᵢ) ≈ exp([ωᵢ·δ]×)·R(e). Orientation measurements (a 6-DoF probe) fit with it.
+    pub fn pose_and_param_jacobian(
+        &self,
+        q: &[f64],
+        e: &ErrorParams,
+    ) -> (Vector3<f64>, UnitQuaternion<f64>, DMatrix<f64>) {
+        let w = self.walk(q, e, true);
+        let rotation = self.tool_pose(q, e).rotation;
+        let mut m = DMatrix::zeros(6, self.layout.len());
+        for (el, axis) in self.elems.iter().zip(&w.axes) {
+            let c = self.column(el, axis, &w.point);
+            m.fixed_view_mut::<3, 1>(0, el.param).copy_from(&c);
+            if let Motion::Rot(_) = el.motion {
+                m.fixed_view_mut::<3, 1>(3, el.param).copy_from(&axis.0);
+            }
+        }
+        (w.point, rotation, m)
+    }
+
     fn apply(&self, t: Isometry3<f64>, el: &Elem, q: &[f64], e: &ErrorParams) -> Isometry3<f64> {
         let mut t = match el.prefix {
             Some(p) => t * p,

@@ -26,7 +26,8 @@ pub struct EffectInputs<'a> {
     pub candidates: &'a Candidates,
     /// The selection.
     pub selection: &'a Selection,
-    /// The refit with the discrepancy term's shapes (the effects' coefficients come first).
+    /// The refit the effects are read from (the effects' coefficients come first after the
+    /// geometry): without the shapes for the effects' reports, with them for the shapes'.
     pub refit: &'a Refit,
 }
 
@@ -131,6 +132,7 @@ fn effect_report(
         p_value: c.p,
         explanation: cand.explanation(),
         not_separable_from: not_separable_from(c.cand, inp.candidates, lib),
+        heldout_gain: None,
     }
 }
 

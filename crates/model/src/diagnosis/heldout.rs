@@ -2,7 +2,7 @@
 //! training part and evaluated on the rest — the `--heldout` recordings when given, else 2 of 8
 //! whole time blocks of the recording itself.
 //!
-//! Units: 3-D RMS in mm.
+//! Units: 3-D RMS, mean and max of the 3-D error, in mm.
 
 use super::linalg::{hcat, lstsq, rms3, rows_of, rows_of_vector};
 use super::select::{Chosen, ChosenShape};
@@ -24,6 +24,19 @@ pub struct Heldout {
     pub after: Option<f64>,
     /// What was held out, in words.
     pub what: String,
+    /// Mean and max of the 3-D error (mm), geometry only; None without a held-out part.
+    pub before_mean_max: Option<(f64, f64)>,
+    /// The same with the terms.
+    pub after_mean_max: Option<(f64, f64)>,
+}
+
+/// Mean and max over the measurements of the 3-D length of a stacked residual (mm).
+pub fn mean_max3(r: &DVector<f64>) -> (f64, f64) {
+    let n = r.len() / 3;
+    let lengths =
+        (0..n).map(|i| (r[3 * i].powi(2) + r[3 * i + 1].powi(2) + r[3 * i + 2].powi(2)).sqrt());
+    let (sum, max) = lengths.fold((0.0, 0.0f64), |(s, m), l| (s + l, m.max(l)));
+    (sum / n.max(1) as f64, max)
 }
 
 /// The terms of a model beside the geometry: named effects and shapes.
@@ -100,10 +113,13 @@ fn other_recordings(
         before.extend((hr - hg * &dg).iter().copied());
         after.extend((hr - ha * &da).iter().copied());
     }
+    let (before, after) = (DVector::from_vec(before), DVector::from_vec(after));
     Heldout {
-        before: Some(rms3(&DVector::from_vec(before))),
-        after: Some(rms3(&DVector::from_vec(after))),
+        before: Some(rms3(&before)),
+        after: Some(rms3(&after)),
         what: format!("{} held-out recording(s)", heldout.len()),
+        before_mean_max: Some(mean_max3(&before)),
+        after_mean_max: Some(mean_max3(&after)),
     }
 }
 
@@ -116,6 +132,8 @@ fn time_block_split(std: &Standard, a_all: &DMatrix<f64>) -> Heldout {
             before: None,
             after: None,
             what: "too few measurements for a held-out split".into(),
+            before_mean_max: None,
+            after_mean_max: None,
         };
     }
     let block = |i: usize| i * 8 / n;
@@ -128,9 +146,12 @@ fn time_block_split(std: &Standard, a_all: &DMatrix<f64>) -> Heldout {
     let ah = rows_of(a_all, &test);
     let dg = lstsq(&gt, &rt).solution;
     let da = lstsq(&at, &rt).solution;
+    let (before, after) = (&rh - gh * dg, &rh - ah * da);
     Heldout {
-        before: Some(rms3(&(&rh - gh * dg))),
-        after: Some(rms3(&(&rh - ah * da))),
+        before: Some(rms3(&before)),
+        after: Some(rms3(&after)),
         what: "time blocks 2 and 6 of 8 held out, fitted on the rest".into(),
+        before_mean_max: Some(mean_max3(&before)),
+        after_mean_max: Some(mean_max3(&after)),
     }
 }

@@ -58,6 +58,7 @@
 //! compares with the RMS figures of [`ResidualStats`](crate::identification::ResidualStats).
 //! The diagnosis reads the recording and the rig only, never a simulated world.
 
+pub mod crossval;
 pub mod discrepancy;
 pub mod effects;
 pub mod heldout;
@@ -74,9 +75,10 @@ pub mod sessions;
 pub mod shapes;
 pub mod unnamed;
 
+pub use crossval::HeldoutGain;
 pub use report::{
     DiscrepancyModel, DiscrepancyReport, EffectReport, FitSummary, Mismatch, Region, Report,
-    ShapeReport, WhereReport,
+    ShapeReport, WeakEffect, WhereReport,
 };
 
 use crate::identification::{fit_geometry, FitError, Level, Observation};
@@ -118,6 +120,9 @@ pub enum DiagnoseError {
     /// A plot could not be written.
     #[error("plot: {0}")]
     Plot(String),
+    /// A held-out session could not be prepared (its bad rows, its frame refit).
+    #[error("held-out session: {0}")]
+    Session(Box<sessions::SessionError>),
     /// Too few measurements for the tests.
     #[error("{measurements} measurements give {equations} equations for {unknowns} unknowns: the diagnosis needs at least {needed} equations ({} residual degrees of freedom for its tests)", screen::MIN_RESIDUAL_DOF)]
     TooFew {
@@ -162,6 +167,12 @@ fn library_with_masses(
 pub struct Options {
     /// Held-out recordings; without them a split of whole time blocks is held out.
     pub heldout: Vec<Recording>,
+    /// Held-out sessions not registered to the recording (the instrument's frame moved): each
+    /// effect's gain on them, their frame refitted, joins the held-out judgement
+    /// ([`crossval`]): an effect that raises their RMS is not claimed.
+    pub sessions: Vec<crate::identification::HeldOut>,
+    /// What is refitted on each held-out session.
+    pub per_session: sessions::PerSession,
 }
 
 /// The standard model of a recording: the measurements, chain, fitted geometry and residuals.
@@ -417,6 +428,12 @@ pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, Di
         crate::identification::check_recording(&rig.chain, h).map_err(Box::new)?;
     }
     let lib = library_for(rig);
+    let clean_sessions = opts
+        .sessions
+        .iter()
+        .map(|h| sessions::clean_session(rig, h))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| DiagnoseError::Session(Box::new(e)))?;
     let mut work = rec.clone();
     let mut removed: Vec<crate::identification::outliers::Outlier> = Vec::new();
     let measured: Vec<u64> = rec
@@ -440,7 +457,20 @@ pub fn diagnose(rig: &Rig, rec: &Recording, opts: &Options) -> Result<Report, Di
                 Ok((d, g, r))
             })
             .collect::<Result<Vec<_>, DiagnoseError>>()?;
-        let (mut report, found) = pipeline::run(&std, &lib, &heldout)?;
+        let sessions = clean_sessions
+            .iter()
+            .map(|c| {
+                sessions::session_for_judgement(
+                    &std.data.chain,
+                    &std.data.e,
+                    &std.free,
+                    c,
+                    opts.per_session,
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| DiagnoseError::Session(Box::new(e)))?;
+        let (mut report, found) = pipeline::run(&std, &lib, &heldout, &sessions)?;
         if found.is_empty() || round + 1 == OUTLIER_ROUNDS {
             if !found.is_empty() {
                 report.notes.push(format!(

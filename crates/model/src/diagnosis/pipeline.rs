@@ -10,46 +10,73 @@
 //! Units: stacked residuals in mm (3 rows per measurement); coefficients in each candidate's
 //! units (see the candidate files).
 
+use super::crossval::{self, HeldoutGain};
 use super::discrepancy::describe;
 use super::effects::{describe_effects, EffectInputs};
 use super::heldout::{Heldout, HeldoutRecording};
 use super::linalg::rms3;
 use super::outliers::judge_outliers;
-use super::refit::{refit, Refit};
+use super::refit::{refit, refit_shapes_on_named, Refit};
+use super::report::WeakEffect;
 use super::report::{locate, FitSummary, Mismatch, Report, WhereReport};
 use super::screen::{screen, Screen, ALPHA_PART};
-use super::select::{build_shapes, forward_selection, project_candidates, Selection};
+use super::select::{
+    build_shapes, forward_selection, project_candidates, set_aside, Candidates, Selection, Shapes,
+};
 use super::unnamed::{test_leftover, Leftover};
 use super::{Candidate, DiagnoseError, Standard, MIN_PURE_ERROR_DOF};
 use crate::identification::outliers::Outlier;
+use nalgebra::DMatrix;
 
 /// Runs one round on a standard fit. `heldout`: each held-out recording at the fitted
-/// geometry. Returns the report (without `outliers`: the caller fills in what it removed) and
+/// geometry; `sessions`: each held-out session with its frame refitted and the basis of its
+/// frame Jacobian ([`super::sessions::session_for_judgement`]). Returns the report (without `outliers`: the caller fills in what it removed) and
 /// the rows that fail the outlier test against the final model (the caller removes them and
 /// runs again).
 pub fn run(
     std: &Standard,
     lib: &[Box<dyn Candidate>],
     heldout: &[HeldoutRecording],
+    sessions: &[(HeldoutRecording, DMatrix<f64>)],
 ) -> Result<(Report, Vec<Outlier>), DiagnoseError> {
     let screen = screen(std)?;
     let candidates = project_candidates(&screen, lib, &std.data);
     let mut shapes = build_shapes(&screen, &std.data);
-    let selection = forward_selection(&screen, &candidates, &mut shapes, &std.data);
+    let mut selection = forward_selection(&screen, &candidates, &mut shapes, &std.data);
+    let judged = judge_on_heldout(
+        &screen,
+        &candidates,
+        &shapes,
+        &mut selection,
+        lib,
+        (heldout, sessions),
+        &std.data,
+    );
     let leftover = test_leftover(std, &screen, &selection, &shapes);
     let significant = mismatch_remains(&screen, &selection, &leftover);
     let named = refit(std, &screen, &selection, false);
     let full = refit(std, &screen, &selection, true);
+    let staged = refit_shapes_on_named(std, &screen, &selection, &named);
     let inputs = EffectInputs {
         std,
         screen: &screen,
         candidates: &candidates,
         selection: &selection,
-        refit: &full,
+        refit: &staged,
     };
-    let effects = describe_effects(&inputs, lib, heldout);
+    // The effects as the model file carries them: sized in the refit without the shapes, which
+    // can trade with an effect they are nearly collinear with and inflate both.
+    let named_inputs = EffectInputs {
+        refit: &named,
+        ..inputs
+    };
+    let mut effects = describe_effects(&named_inputs, lib, heldout);
+    for (e, g) in effects.reports.iter_mut().zip(judged.gains) {
+        e.heldout_gain = g;
+    }
     let described = describe(&inputs, lib, heldout, rms3(&named.residual));
     let mut notes = notes(std);
+    notes.extend(judged.note);
     notes.extend(selection.dropped.iter().map(|&k| {
         format!(
             "{} was not claimed: it only soaked up part of a shape outside the library (the located shape explains what it fitted)",
@@ -72,10 +99,60 @@ pub fn run(
         out_of_library: described.shapes,
         discrepancy: described.report,
         effects: effects.reports,
+        below_evidence: judged.weak,
         absorbed: candidates.absorbed,
         fit: fit_summary(std, &screen, &named, effects.heldout),
     };
     Ok((report, outliers))
+}
+
+/// The held-out judgement of the chosen effects, applied to the selection.
+struct Judged {
+    /// The held-out gain of each effect left in the selection, in its order.
+    gains: Vec<Option<HeldoutGain>>,
+    /// The effects set aside.
+    weak: Vec<WeakEffect>,
+    /// Why the recording could not be judged, when it could not.
+    note: Option<String>,
+}
+
+/// Judges the chosen effects on held-out data ([`crossval::judge`]) and sets aside from
+/// `selection` those that do not earn their place.
+fn judge_on_heldout(
+    screen: &Screen,
+    candidates: &Candidates,
+    shapes: &Shapes,
+    selection: &mut Selection,
+    lib: &[Box<dyn Candidate>],
+    (heldout, sessions): (&[HeldoutRecording], &[(HeldoutRecording, DMatrix<f64>)]),
+    data: &super::Data,
+) -> Judged {
+    let j = crossval::judge(screen, candidates, selection, lib, heldout, sessions, data);
+    let n = selection.chosen.len();
+    let weak_idx: Vec<usize> = j.weak.iter().map(|w| w.0).collect();
+    let weak = j
+        .weak
+        .iter()
+        .map(|(i, g, why)| {
+            let c = &lib[selection.chosen[*i].cand];
+            WeakEffect {
+                label: c.label(),
+                kind: c.kind(),
+                gain: g.clone(),
+                reason: why.clone(),
+            }
+        })
+        .collect();
+    let gains = (0..n)
+        .filter(|i| !weak_idx.contains(i))
+        .map(|i| j.kept.iter().find(|k| k.0 == i).map(|k| k.1.clone()))
+        .collect();
+    set_aside(screen, selection, candidates, shapes, &weak_idx);
+    Judged {
+        gains,
+        weak,
+        note: j.not_judged,
+    }
 }
 
 /// Whether a mismatch remains after the geometric fit: an effect was named, something is left
@@ -179,6 +256,10 @@ fn fit_summary(std: &Standard, screen: &Screen, refit: &Refit, heldout: Heldout)
         after_rms_mm: rms3(&refit.residual),
         heldout_before_rms_mm: heldout.before,
         heldout_after_rms_mm: heldout.after,
+        heldout_before_mean_mm: heldout.before_mean_max.map(|m| m.0),
+        heldout_before_max_mm: heldout.before_mean_max.map(|m| m.1),
+        heldout_after_mean_mm: heldout.after_mean_max.map(|m| m.0),
+        heldout_after_max_mm: heldout.after_mean_max.map(|m| m.1),
         heldout: heldout.what,
     }
 }

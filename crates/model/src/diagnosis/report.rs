@@ -3,6 +3,7 @@
 //!
 //! Units: mm for sizes and RMS (3-D RMS over measurements), degrees for joint ranges.
 
+use super::crossval::HeldoutGain;
 use super::shapes::ShapeSpec;
 use super::{Data, AXES};
 use crate::effects::compliance::unit_torques;
@@ -33,6 +34,10 @@ pub struct Report {
     /// effects: its RMS on the fitted and held-out data with and without it.
     #[serde(default)]
     pub discrepancy: Option<DiscrepancyReport>,
+    /// Effects the F-tests chose that did not earn their place on held-out data
+    /// ([`super::crossval`]): below what this recording can show, never named.
+    #[serde(default)]
+    pub below_evidence: Vec<WeakEffect>,
     /// Candidates the geometry absorbs entirely (visible fraction below 1e-3).
     pub absorbed: Vec<String>,
     /// RMS before and after.
@@ -133,6 +138,24 @@ pub struct EffectReport {
     pub explanation: String,
     /// Candidates these poses cannot tell apart from this one ("X or Y").
     pub not_separable_from: Vec<String>,
+    /// Its gain on held-out blocks of the recording (and the held-out recordings): what earned
+    /// it its place ([`super::crossval`]).
+    #[serde(default)]
+    pub heldout_gain: Option<HeldoutGain>,
+}
+
+/// An effect the F-tests chose whose held-out gain does not show it: below what this
+/// recording can show.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WeakEffect {
+    /// "backlash on joint 2".
+    pub label: String,
+    /// The vocabulary's kind.
+    pub kind: EffectKind,
+    /// Its held-out gain when it was set aside.
+    pub gain: HeldoutGain,
+    /// Why it falls short.
+    pub reason: String,
 }
 
 /// A located residual no library effect explains, described by its shape (16 fields: the
@@ -259,6 +282,18 @@ pub struct FitSummary {
     pub heldout_before_rms_mm: Option<f64>,
     /// Held-out 3-D RMS, with the named effects (mm).
     pub heldout_after_rms_mm: Option<f64>,
+    /// Held-out mean 3-D error, geometric model (mm).
+    #[serde(default)]
+    pub heldout_before_mean_mm: Option<f64>,
+    /// Held-out largest 3-D error, geometric model (mm).
+    #[serde(default)]
+    pub heldout_before_max_mm: Option<f64>,
+    /// Held-out mean 3-D error, with the named effects (mm).
+    #[serde(default)]
+    pub heldout_after_mean_mm: Option<f64>,
+    /// Held-out largest 3-D error, with the named effects (mm).
+    #[serde(default)]
+    pub heldout_after_max_mm: Option<f64>,
     /// What was held out.
     pub heldout: String,
 }
@@ -459,6 +494,15 @@ impl Report {
         for e in &self.effects {
             e.write_text(&mut s);
         }
+        for w in &self.below_evidence {
+            let _ = writeln!(
+                s,
+                "below what this recording can show: {} ({}): {}",
+                w.label,
+                w.gain.text(),
+                w.reason
+            );
+        }
         if self.unexplained {
             let _ = writeln!(s, "unexplained: a significant structured residual remains that no known effect explains");
             for w in &self.unexplained_where {
@@ -500,6 +544,16 @@ impl Report {
                 s,
                 "RMS held out ({}): {b:.4} mm before, {a:.4} mm after",
                 f.heldout
+            );
+            let fig = |m: Option<f64>, r: f64, x: Option<f64>| match (m, x) {
+                (Some(m), Some(x)) => format!("mean {m:.4}, RMS {r:.4}, max {x:.4} mm"),
+                _ => format!("RMS {r:.4} mm"),
+            };
+            let _ = writeln!(
+                s,
+                "held out: geometry {}; with the named effects {}",
+                fig(f.heldout_before_mean_mm, b, f.heldout_before_max_mm),
+                fig(f.heldout_after_mean_mm, a, f.heldout_after_max_mm)
             );
         }
         s
@@ -588,6 +642,9 @@ impl EffectReport {
             "  the geometric parameters absorbed {:.0} % of it",
             100.0 * e.absorbed_fraction
         );
+        if let Some(g) = &e.heldout_gain {
+            let _ = writeln!(s, "  {}", g.text());
+        }
         if let (Some(w), Some(wo)) = (e.heldout_rms_with_mm, e.heldout_rms_without_mm) {
             let _ = writeln!(
                 s,

@@ -13,7 +13,7 @@
 
 use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
 use super::screen::{screen, Screen, ALPHA_PART};
-use super::shapes::{refine_position, shape_bases, Form, ShapeSpec};
+use super::shapes::{refine_position, shape_bases, Form, ShapeSpec, Variable};
 use super::{Candidate, Data, DiagnoseError, Standard, SEPARABLE_CORRELATION};
 use nalgebra::{DMatrix, DVector, Matrix3};
 
@@ -385,6 +385,31 @@ fn model_without(
     orth_basis(&hcat(&blocks, screen.rows()), 1e-9)
 }
 
+/// Removes the chosen effects at `idx` (indices into `sel.chosen`) that did not earn their
+/// place on held-out data ([`super::crossval`]) and rebuilds the selection's model without
+/// them; returns them in the order of `idx`.
+pub fn set_aside(
+    screen: &Screen,
+    sel: &mut Selection,
+    cands: &Candidates,
+    shapes: &Shapes,
+    idx: &[usize],
+) -> Vec<Chosen> {
+    if idx.is_empty() {
+        return Vec::new();
+    }
+    let out: Vec<Chosen> = idx.iter().map(|&i| sel.chosen[i].clone()).collect();
+    let mut k = 0;
+    sel.chosen.retain(|_| {
+        k += 1;
+        !idx.contains(&(k - 1))
+    });
+    let q = model_without(screen, sel, cands, shapes, None);
+    sel.residual = &screen.residual - &q * (q.transpose() * &screen.residual);
+    sel.basis = q;
+    out
+}
+
 /// Tests every chosen term given all the others and drops the least significant one that fails
 /// (a library term: p at or above [`ALPHA_PART`] ÷ its candidates; a shape: that or a size
 /// below [`SHAPE_MIN_SIZE`]), until none fails; then rebuilds the selection's model.
@@ -449,6 +474,13 @@ fn best_shape(
         let Some(x) = &shapes.weighted[k] else {
             continue;
         };
+        // One basis per joint variable: a second basis on the same variable (harmonics beside
+        // splines of one joint's angle) is nearly collinear with the first, and the two trade
+        // huge coefficients. Position shapes are refined on purpose (`refinement`).
+        let v = shapes.specs[k].variable;
+        if v != Variable::Position && sel.shapes.iter().any(|c| c.spec.variable == v) {
+            continue;
+        }
         let Some(t) = term_test(screen, &sel.basis, &sel.residual, x) else {
             continue;
         };

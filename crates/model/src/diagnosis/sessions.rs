@@ -479,3 +479,43 @@ pub fn without_rows(rec: &Recording, seqs: impl IntoIterator<Item = u64>) -> Rec
     }
     out
 }
+
+/// A held-out session as the held-out judgement ([`super::crossval`]) reads it: the session at
+/// the training geometry with its measurement frame (and marker, per `per`) refitted, its
+/// geometric Jacobian over the training fit's free parameters `free`, its residual, and an
+/// orthonormal basis of the frame parameters' Jacobian there. The judgement projects that basis
+/// out of every prediction: the frame is refitted per session, so the part of a term's
+/// displacement a frame shift can take is no gain (the linearised form of [`physics_heldout`]'s
+/// refit, about a frame that has already converged).
+pub fn session_for_judgement(
+    chain: &SerialChain,
+    params: &ErrorParams,
+    free: &[usize],
+    clean: &CleanSession,
+    per: PerSession,
+) -> Result<(super::heldout::HeldoutRecording, DMatrix<f64>), SessionError> {
+    let obs = clean.recording.observations();
+    if obs.is_empty() {
+        return Err(SessionError::Empty {
+            name: clean.name.clone(),
+        });
+    }
+    let (fit, g) = refit_frame(chain, params, &obs, per).map_err(|source| SessionError::Refit {
+        name: clean.name.clone(),
+        source,
+    })?;
+    let back = g.inverse();
+    let mut rec = clean.recording.clone();
+    for row in &mut rec.rows {
+        row.position = row.position.map(|p| back.transform_point(&p.into()).coords);
+    }
+    let d = diagnosis::prepare(chain, &fit.params, &rec)?;
+    let poses: Vec<Vec<f64>> = d.obs.iter().map(|o| o.q.clone()).collect();
+    let jac = |idx: &[usize]| {
+        crate::identification::identifiability::stacked_jacobian(chain, &fit.params, &poses, idx)
+    };
+    let hg = jac(free);
+    let frame = diagnosis::linalg::orth_basis(&jac(&per.indices(chain)), 1e-9);
+    let r = diagnosis::residual_of(&d);
+    Ok(((d, hg, r), frame))
+}

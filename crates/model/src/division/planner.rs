@@ -137,6 +137,10 @@ pub struct DivisionOptions {
     /// Planning mode: how a region's test is measured ([`TestPlan`]); the default measures
     /// every test point of every region afresh in one batch (the paper's).
     pub test_plan: TestPlan,
+    /// The box divided, when not the rig's workspace (its major joints' limits, or its
+    /// `[workspace]` bounds): offline, a recording's extent, so a 6-DOF arm with ±360° limits
+    /// is not divided over the empty space its recording never reached.
+    pub bounds: Option<Bounds>,
 }
 
 /// How a region's test points are measured (planning mode): the levers that cut a rig's test
@@ -186,6 +190,7 @@ impl Default for DivisionOptions {
             confidence_z: CONFIDENCE_Z,
             learner_tolerance: 0.0,
             test_plan: TestPlan::default(),
+            bounds: None,
         }
     }
 }
@@ -275,7 +280,10 @@ pub fn divide(
     opts: &DivisionOptions,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<DivisionReport, DivisionError> {
-    let space = DivisionSpace::new(rig, opts.space)?;
+    let mut space = DivisionSpace::new(rig, opts.space)?;
+    if let Some(b) = opts.bounds {
+        space.full = b;
+    }
     let full = space.full;
     let mut ctx = Ctx {
         rig,

@@ -84,14 +84,39 @@ pub enum ExportError {
 
 /// The constant error parameters a model exports: a conventional model's fit, or a variable
 /// model's conventional fit (a URDF holds one geometry, not one per region; the second value
-/// says so). A neural model has no geometry to export.
+/// says so). A model with effects exports the geometry fitted without them (a URDF cannot carry
+/// them, and the geometry fitted beside them does not stand alone), and says so. A neural model
+/// has no geometry to export.
 pub fn exported_parameters(
     file: &crate::model::ModelFile,
     rig: &rigcal_core::rig::Rig,
     path: &std::path::Path,
-) -> Result<(rigcal_core::kinematics::ErrorParams, Option<&'static str>), ExportError> {
+) -> Result<(rigcal_core::kinematics::ErrorParams, Option<String>), ExportError> {
     use crate::model::{params_from_entries, ModelBody};
     let model_error = |e: crate::model::ModelError| ExportError::Model(e.to_string());
+    if !file.effects.is_empty() {
+        let names: Vec<String> = file.effects.iter().map(|e| e.spec().label()).collect();
+        let cannot = format!(
+            "a URDF cannot carry the model's effects ({}): they stay in the model file, for `compensate` and `evaluate`",
+            names.join(", ")
+        );
+        if !file.standalone_parameters.is_empty() {
+            return Ok((
+                params_from_entries(rig, &file.standalone_parameters, path).map_err(model_error)?,
+                Some(format!(
+                    "{cannot}; the URDF gets the geometry fitted without them, which stands alone"
+                )),
+            ));
+        }
+        if let ModelBody::Constant { parameters, .. } = &file.model {
+            return Ok((
+                params_from_entries(rig, parameters, path).map_err(model_error)?,
+                Some(format!(
+                    "{cannot}; this file (written before models kept a stand-alone geometry) has only the geometry fitted beside them, which alone may be worse than a plain fit: identify again without --effects for a URDF"
+                )),
+            ));
+        }
+    }
     match &file.model {
         ModelBody::Constant { parameters, .. } => Ok((
             params_from_entries(rig, parameters, path).map_err(model_error)?,
@@ -99,7 +124,7 @@ pub fn exported_parameters(
         )),
         ModelBody::Variable { conventional, .. } => Ok((
             params_from_entries(rig, conventional, path).map_err(model_error)?,
-            Some("a variable model varies over the workspace; the URDF gets its conventional (constant) fit"),
+            Some("a variable model varies over the workspace; the URDF gets its conventional (constant) fit".into()),
         )),
         _ => Err(ExportError::Model(
             "a neural model corrects positions, not the geometry: export a model from `rigcal identify` or `rigcal calibrate`".into(),

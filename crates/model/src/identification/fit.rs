@@ -463,7 +463,6 @@ impl<'a> Problem<'a> {
         before: ResidualStats,
         opts: &FitOptions,
     ) -> Result<(FitResult, NormalEquations), FitError> {
-        let p = self.free.len();
         let mut e = start;
         // Whether `n` and the pass buffers are at `e` (no step taken since the last pass); normal
         // equations from the caller come without the buffers.
@@ -477,22 +476,15 @@ impl<'a> Problem<'a> {
         let mut iterations = 0;
         for _ in 0..opts.max_iterations {
             iterations += 1;
-            let d: Vec<f64> = (0..p).map(|c| n.jtj[(c, c)].sqrt().max(1e-300)).collect();
-            let a = DMatrix::from_fn(p, p, |r, c| n.jtj[(r, c)] / (d[r] * d[c]));
-            let g = DVector::from_fn(p, |r, _| n.jtr[r] / d[r]);
+            let (d, a, g) = scaled_normal_equations(&n.jtj, &n.jtr);
             let mut improved = false;
             let mut converged = false;
             let mut step_norm = 0.0;
             for _ in 0..12 {
-                let mut damped = a.clone();
-                for k in 0..p {
-                    damped[(k, k)] += lambda * a[(k, k)].max(1e-12);
-                }
-                let Some(chol) = damped.cholesky() else {
+                let Some(ds) = damped_step(&a, &g, lambda) else {
                     lambda *= 10.0;
                     continue;
                 };
-                let ds = chol.solve(&g);
                 step_norm = ds.norm();
                 // rᵀr − |r − J·δ|² of the linearised model: what the step can gain at most.
                 let predicted = 2.0 * g.dot(&ds) - ds.dot(&(&a * &ds));
@@ -599,4 +591,29 @@ fn kappa_from_normal(jtj: &DMatrix<f64>) -> Option<f64> {
     let (max, min) = (eig.max(), eig.min());
     let kappa = max / min;
     (min > 0.0 && kappa < GRAM_KAPPA_MAX).then_some(kappa)
+}
+
+/// The normal equations JᵀJ·δ = Jᵀr scaled to a unit diagonal (Marquardt's scaling, so that
+/// the damping treats millimetres and radians alike): the column scales d, JᵀJ/(d·dᵀ) and Jᵀr/d.
+/// The step in the original units is δ_k = δs_k / d_k.
+pub(crate) fn scaled_normal_equations(
+    jtj: &DMatrix<f64>,
+    jtr: &DVector<f64>,
+) -> (Vec<f64>, DMatrix<f64>, DVector<f64>) {
+    let p = jtj.nrows();
+    let d: Vec<f64> = (0..p).map(|c| jtj[(c, c)].sqrt().max(1e-300)).collect();
+    let a = DMatrix::from_fn(p, p, |r, c| jtj[(r, c)] / (d[r] * d[c]));
+    let g = DVector::from_fn(p, |r, _| jtr[r] / d[r]);
+    (d, a, g)
+}
+
+/// The Levenberg–Marquardt step of scaled normal equations `a`·δs = `g` with the diagonal
+/// damped by `lambda` (relative to itself); None when the damped matrix is not positive
+/// definite (the caller raises `lambda`).
+pub(crate) fn damped_step(a: &DMatrix<f64>, g: &DVector<f64>, lambda: f64) -> Option<DVector<f64>> {
+    let mut damped = a.clone();
+    for k in 0..a.nrows() {
+        damped[(k, k)] += lambda * a[(k, k)].max(1e-12);
+    }
+    damped.cholesky().map(|chol| chol.solve(g))
 }

@@ -89,6 +89,22 @@ impl GeometricFit {
     }
 }
 
+/// The chain a fit of `obs` starts from: with a free measurement frame, the nominal chain
+/// registered onto the measured points (Kabsch, closed form), so that the iterations start near
+/// the tracker's frame however it is turned; otherwise the rig's chain.
+pub(crate) fn registered_start(rig: &Rig, obs: &[Observation]) -> SerialChain {
+    if rig.calibration.measurement_frame != FrameMode::Free {
+        return rig.chain.clone();
+    }
+    let nominal = ErrorParams::zeros(rig.chain.layout());
+    let model: Vec<_> = obs
+        .iter()
+        .map(|o| rig.chain.position(&o.q, &nominal))
+        .collect();
+    let measured: Vec<_> = obs.iter().map(|o| o.p).collect();
+    rig.chain.with_frame(kabsch(&model, &measured))
+}
+
 /// Fits the `candidates` (layout indices, priority order) that the observed poses can identify:
 /// Kabsch start when the rig's frame is free, the identifiability analysis, then the fit from
 /// the nominal parameters.
@@ -99,16 +115,7 @@ pub fn fit_geometry(
 ) -> Result<GeometricFit, FitError> {
     let nominal = ErrorParams::zeros(rig.chain.layout());
     let free_frame = rig.calibration.measurement_frame == FrameMode::Free;
-    let started = if free_frame {
-        let model: Vec<_> = obs
-            .iter()
-            .map(|o| rig.chain.position(&o.q, &nominal))
-            .collect();
-        let measured: Vec<_> = obs.iter().map(|o| o.p).collect();
-        rig.chain.with_frame(kabsch(&model, &measured))
-    } else {
-        rig.chain.clone()
-    };
+    let started = registered_start(rig, obs);
     let poses: Vec<Vec<f64>> = obs.iter().map(|o| o.q.clone()).collect();
     let identifiability = analyse_determined(&started, &poses, candidates);
     let mut fit = fit(
@@ -219,7 +226,7 @@ pub fn identify_at(
 
 /// Rewrites the fitted frame parameters of a chain whose nominal frame was a start value as
 /// absolute values for the identity nominal frame: F = Trans(x, y, z) · Rz(rz) · Ry(ry) · Rx(rx).
-fn absolute_frame(started: &SerialChain, result: &mut FitResult) {
+pub(crate) fn absolute_frame(started: &SerialChain, result: &mut FitResult) {
     let f = started.frame_pose(&result.params);
     let (roll, pitch, yaw) = f.rotation.euler_angles();
     let t = f.translation.vector;

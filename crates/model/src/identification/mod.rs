@@ -17,6 +17,8 @@
 //!   this fit.
 //! * [`pipeline`]: [`identify`], conventional calibration of a recording: the geometric fit with
 //!   outliers removed and the fitted model checked on held-out recordings.
+//! * [`pose`]: identification from pose measurements (a 6-DoF probe): orientation rows beside
+//!   the position rows, weighted by stated or estimated σ, the marker frame a full pose.
 //! * [`checks`]: what a fit reads is bounded (no absurd coordinate reaches a matrix) and what
 //!   it returns is judged (a diverged fit is an error, never a model).
 //!
@@ -30,8 +32,10 @@ pub mod identifiability;
 pub mod incremental;
 pub mod outliers;
 pub mod pipeline;
+pub mod pose;
 pub mod registration;
 mod robot_at;
+pub mod screen;
 
 pub use checks::{check_fit, check_observations, check_recording, AbsurdValue, Diverged};
 pub use fit::{errors, fit, FitError, FitOptions, FitResult, Observation, Prior, ResidualStats};

@@ -12,6 +12,15 @@
 //! row; a reflection or a touch on dirt, far beyond every other row, is removed without the
 //! diagnosis's cost (seconds on thousands of rows, against milliseconds).
 //!
+//! Between the two stands a screen of a few fits' cost ([`super::screen`]): the flagged rows
+//! judged against geometry, each joint's error as a spline of its own angle and a drift in
+//! time, linearised and factored once. A row is removed there only when it fails against the
+//! geometry and against that structure and stands out from its own neighbourhood as well
+//! ([`super::screen::isolated`]); when no flagged row fails there every row is kept; when too
+//! many fail nothing is removed and a warning says so. Only rows that fail beside neighbours
+//! that fail too — local structure the screen lacks (a dent, a deformation of the workspace) —
+//! go on to the diagnosis's judgement.
+//!
 //! The parameters returned are absolute (free frames included), for the rig's own chain, so a
 //! model file written from them stands alone.
 
@@ -129,10 +138,11 @@ pub fn identify(
 ///
 /// The geometric judgement decides alone when no row fails, when every row that fails is gross
 /// beyond any structure ([`GROSS_FACTOR`]), or without a `structure` judge; otherwise the rows
-/// are judged again against the recording's structure and the fit at `level` is redone without
-/// the rows that fail there, so that a clean recording whose residual is structured — its
-/// largest rows are structure, not gross errors — keeps every row. When the structure cannot
-/// be modelled (too few rows, say) the geometric judgement stands.
+/// are judged again against the recording's structure — the smooth-structure screen first,
+/// the `structure` judge where the screen cannot decide ([`Screen`]) — and the fit at `level`
+/// is redone without the rows that fail there, so that a clean recording whose residual is
+/// structured — its largest rows are structure, not gross errors — keeps every row. When the
+/// structure cannot be modelled (too few rows, say) the geometric judgement stands.
 fn identify_robust(
     rig: &Rig,
     rec: &Recording,
@@ -149,9 +159,14 @@ fn identify_robust(
         return Err(IdentifyError::NothingToFit { level });
     }
     let started = std::time::Instant::now();
-    let judged = geometric_judgement(rig, &obs, &measured_ids(rec), level, settings)?;
+    let ids = measured_ids(rec);
+    let judged = geometric_judgement(rig, &obs, &ids, level, settings)?;
     tracing::debug!(
         seconds = started.elapsed().as_secs_f64(),
+        failed = ?judged.search.as_ref().map(|(found, _)| found
+            .iter()
+            .map(|o| (o.seq, o.size_mm))
+            .collect::<Vec<_>>()),
         "geometric outlier search"
     );
     if judged.decided_without_structure() {
@@ -160,6 +175,25 @@ fn identify_robust(
             "outliers decided by the geometric judgement"
         );
     } else if let Some(judge) = structure {
+        let started = std::time::Instant::now();
+        let screened = judged.screened(rig, rec, &obs, &ids, settings);
+        tracing::debug!(
+            seconds = started.elapsed().as_secs_f64(),
+            decided = screened.is_some(),
+            "outliers screened against the smooth structure"
+        );
+        match screened {
+            Some(Screen::AllRowsKept) => return judged.on_every_row(rig, &obs, level),
+            Some(Screen::GeometricVerdict) => return judged.into_robust(rig, &obs, level),
+            Some(Screen::Rows(found)) => {
+                return without_rows_that_fail(rig, &obs, level, Ok(found))
+            }
+            Some(Screen::TooMany(warning)) => {
+                let (chain, result, _, _) = judged.on_every_row(rig, &obs, level)?;
+                return Ok((chain, result, Vec::new(), Some(warning)));
+            }
+            None => {}
+        }
         let started = std::time::Instant::now();
         let verdict = judge(rig, rec, settings);
         tracing::debug!(
@@ -239,6 +273,104 @@ impl GeometricJudgement {
             }
             Err(OutlierError::Fit(e)) => Err(e),
         }
+    }
+}
+
+/// What the smooth-structure screen ([`super::screen`]) decides about the rows the geometric
+/// search flagged.
+enum Screen {
+    /// No flagged row fails against the smooth structure: they are structure, every row is
+    /// kept.
+    AllRowsKept,
+    /// Every row the geometric search removed fails there too, each beyond its own
+    /// neighbourhood: its verdict stands.
+    GeometricVerdict,
+    /// These rows fail against both (or against the structure, when the geometric search
+    /// stopped at too many), each beyond its own neighbourhood: they are removed.
+    Rows(Vec<Outlier>),
+    /// Too many rows fail against the structure too: nothing is removed, and this says so.
+    TooMany(String),
+}
+
+impl GeometricJudgement {
+    /// The flagged rows judged against the smooth structure of [`super::screen`] (geometry,
+    /// each joint's error in its own angle, a drift in time), linearised at the fit on every
+    /// row: a few fits' cost. A row is an outlier when it fails against the geometry and
+    /// against the structure: the structure explains rows, it accuses none the geometry
+    /// clears. None when the screen cannot judge (too few rows for its columns) or cannot
+    /// decide (a failing row's neighbours fail with it: local structure it lacks).
+    fn screened(
+        &self,
+        rig: &Rig,
+        rec: &Recording,
+        obs: &[Observation],
+        ids: &[(u64, Option<u64>)],
+        settings: &OutlierSettings,
+    ) -> Option<Screen> {
+        let (chain, first) = self.first.as_ref()?;
+        let candidates = Level::Full.candidates(rig);
+        let times = super::screen::observation_times(rec);
+        let screened = super::screen::screen(
+            chain,
+            &first.params,
+            obs,
+            &candidates,
+            &times,
+            ids,
+            settings,
+        )?;
+        tracing::debug!(
+            rank = screened.rank,
+            failed = ?screened.search.as_ref().map(|(found, _)| found
+                .iter()
+                .map(|o| (o.seq, o.size_mm))
+                .collect::<Vec<_>>()),
+            "smooth-structure screen"
+        );
+        let (found, kept) = match screened.search {
+            Ok(search) => search,
+            Err(e) => return Some(Screen::TooMany(e.to_string())),
+        };
+        let both: Vec<Outlier> = match &self.search {
+            Ok((geometric, _)) => found
+                .into_iter()
+                .filter(|o| geometric.iter().any(|g| g.index == o.index))
+                .collect(),
+            Err(_) => found,
+        };
+        if both.is_empty() {
+            return Some(Screen::AllRowsKept);
+        }
+        let rows: Vec<usize> = both.iter().map(|o| o.index).collect();
+        if !super::screen::isolated(
+            obs,
+            &screened.residuals,
+            &kept,
+            &rows,
+            screened.rank,
+            settings.alpha,
+        ) {
+            tracing::debug!("rows fail with their neighbourhood: the diagnosis judges them");
+            return None;
+        }
+        Some(match &self.search {
+            Ok((geometric, _)) if geometric.len() == both.len() => Screen::GeometricVerdict,
+            _ => Screen::Rows(both),
+        })
+    }
+
+    /// The fit on every row, nothing removed.
+    fn on_every_row(
+        self,
+        rig: &Rig,
+        obs: &[Observation],
+        level: Level,
+    ) -> Result<Robust, IdentifyError> {
+        let (chain, result) = match self.first {
+            Some(first) => first,
+            None => identify_at(rig, obs, level)?,
+        };
+        Ok((chain, result, Vec::new(), None))
     }
 }
 

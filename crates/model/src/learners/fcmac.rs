@@ -135,6 +135,11 @@ impl Fcmac {
         let lo = self.range.lo[d];
         let spacing = (self.range.hi[d] - lo) / (n - 1).max(1) as f64;
         let sigma = self.config.sigma_fraction * spacing;
+        // An input beyond the range answers as at its nearest edge: the network holds nothing
+        // beyond it, and unclamped the memberships underflow to zero a few spacings out and the
+        // answer is all-zero CEPs (the nominal arm, the marker at its nominal place), which on
+        // a held-out UR10 series outside the training's joint range was 92 mm off.
+        let s = s.clamp(lo.min(self.range.hi[d]), self.range.hi[d].max(lo));
         let pos = ((s - lo) / spacing).clamp(0.0, (n - 1) as f64);
         let c = self.config.c[d].min(n);
         // The c strongest sensors are the c nearest centres: a window around the input.

@@ -23,8 +23,8 @@
 use crate::effects::{backlash, compliance, transmission, EffectContext, EffectKind};
 use crate::identification::identifiability::stacked_jacobian;
 use crate::identification::{FitResult, Observation, ResidualStats};
-use nalgebra::{DMatrix, DVector};
-use rigcal_core::kinematics::{JointKind, Robot, SerialChain};
+use nalgebra::{DMatrix, DVector, Vector3};
+use rigcal_core::kinematics::{ErrorParams, JointKind, Robot, SerialChain};
 use rigcal_core::rig::LinkMass;
 use serde::{Deserialize, Serialize};
 
@@ -627,6 +627,34 @@ pub fn effect_observations(
         }
     }
     out
+}
+
+/// The errors (measured − modelled, mm, world) of a recording's measured rows under the
+/// geometry `e` of `chain` with `effects` applied at the commanded joints (approach directions
+/// from row order, as [`effect_observations`] reads them; no payload): the held-out figure of a
+/// model with effects, where the geometry's own figure leaves them out. Summarise with
+/// [`ResidualStats::of`] for mean, RMS and max.
+pub fn errors_with_effects(
+    chain: &SerialChain,
+    e: &ErrorParams,
+    masses: &[Option<LinkMass>],
+    effects: &[ModelEffect],
+    rec: &rigcal_core::recording::Recording,
+) -> Vec<Vector3<f64>> {
+    let ctx = EffectContext {
+        chain,
+        e,
+        masses,
+        payload_kg: 0.0,
+    };
+    effect_observations(rec, &[])
+        .iter()
+        .map(|d| {
+            let dq = joint_offsets(effects, &ctx, &d.obs.q, &d.direction);
+            let actual: Vec<f64> = d.obs.q.iter().zip(&dq).map(|(a, b)| a + b).collect();
+            d.obs.p - chain.position(&actual, e)
+        })
+        .collect()
 }
 
 /// Fits `specs` on a recording beside the geometry of an identification of it

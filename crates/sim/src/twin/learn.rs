@@ -839,8 +839,9 @@ pub enum NamedModelError {
 /// The model file `rigcal diagnose --model` writes: the conventional identification of `rec`
 /// and the joint effects `report` named that a model can carry (backlash, transmission errors,
 /// compliance when the rig has the masses), fitted beside the geometry. Also returns the named
-/// effects left out, each with why. Nothing is written when the report leaves an unexplained
-/// remainder: its named terms are not claimed (see [`learn`]).
+/// effects left out, each with why. An effect the diagnosis named has earned its place on
+/// held-out data (`rigcal_model::diagnosis::crossval`), so it is kept even beside an
+/// unexplained remainder.
 pub fn model_with_named_effects(
     rig: &rigcal_core::rig::Rig,
     rec: &Recording,
@@ -857,9 +858,6 @@ pub fn model_with_named_effects(
     for e in &report.effects {
         let (label, term) = term_of(e);
         match term {
-            _ if report.unexplained => left.push(format!(
-                "{label}: not claimed beside an unexplained remainder"
-            )),
             Term::Joint(s) => match s.check(&rig.link_masses, rig.chain.joints().len()) {
                 Ok(()) => specs.push(s),
                 Err(why) => left.push(format!("{label}: {why}")),
@@ -884,5 +882,6 @@ pub fn model_with_named_effects(
     let mut file = rigcal_model::model::ModelFile::constant(rig, &fitted.fit, provenance);
     file.outliers = id.outliers.clone();
     file.effects = fitted.effects;
+    file.standalone_parameters = rigcal_model::model::entries(rig, &id.fit);
     Ok((file, left))
 }

@@ -12,6 +12,7 @@
 use super::{AngleUnit, LengthUnit};
 use crate::kinematics::{ErrorParams, JointKind, Robot};
 use crate::recording::Recording;
+use crate::stats::median;
 use nalgebra::{UnitQuaternion, Vector3};
 
 /// Spread ratios (measured / nominal) accepted without question.
@@ -64,14 +65,14 @@ pub fn check_scale(
             .map(|(m, p)| (m.q.as_slice(), p, m.orientation))
             .collect()
     };
-    if let Some((_, p, _)) = rows.iter().find(|(_, p, _)| p.norm() > FARTHEST_MM) {
+    // The median point: one gross cell is an outlier for the fit to name, not a unit error.
+    let mut norms: Vec<f64> = rows.iter().map(|(_, p, _)| p.norm()).collect();
+    let far = median(&mut norms);
+    if far > FARTHEST_MM {
         return Err(ScaleMismatch {
             what: format!(
-                "a measured point lies {:.1} km from the instrument's origin ({:.0}, {:.0}, {:.0} mm)",
-                p.norm() / 1e6,
-                p.x,
-                p.y,
-                p.z
+                "the measured points lie a median {:.1} km from the instrument's origin",
+                far / 1e6
             ),
             cause: format!(
                 "no tracker or camera measures that far: {}",
@@ -87,11 +88,17 @@ pub fn check_scale(
     orientations(&rows, robot, declared)
 }
 
-/// RMS distance of the points from their centre.
+/// Median distance of the points from their coordinate-wise median: a spread that a few gross
+/// cells do not move (they are the outlier search's, and must not read as a unit error).
 fn spread(points: &[Vector3<f64>]) -> f64 {
-    let n = points.len() as f64;
-    let c = points.iter().sum::<Vector3<f64>>() / n;
-    (points.iter().map(|p| (p - c).norm_squared()).sum::<f64>() / n).sqrt()
+    let centre =
+        Vector3::from_fn(|i, _| median(&mut points.iter().map(|p| p[i]).collect::<Vec<_>>()));
+    median(
+        &mut points
+            .iter()
+            .map(|p| (p - centre).norm())
+            .collect::<Vec<_>>(),
+    )
 }
 
 /// Nominal positions with revolute joints scaled by `ka` and prismatic ones by `kl`.
@@ -159,8 +166,8 @@ fn positions(
         }
     }
     let what = format!(
-        "the measured positions spread over {} mm (RMS about their centre) where the rig's \
-         nominal kinematics put them over {s_p:.0} mm at the same joint values",
+        "the measured positions lie a median {} mm from their centre where the rig's \
+         nominal kinematics put them {s_p:.0} mm from it at the same joint values",
         short(s_m)
     );
     let explained = best.filter(|b| EXPLAINED.contains(&b.2));
@@ -248,10 +255,18 @@ fn short(v: f64) -> String {
     }
 }
 
-/// Mean angle (rad) between the orientations of successive rows.
-fn mean_turn(rs: &[UnitQuaternion<f64>]) -> f64 {
-    let n = rs.len().saturating_sub(1).max(1) as f64;
-    rs.windows(2).map(|w| w[0].angle_to(&w[1])).sum::<f64>() / n
+/// Median angle (rad) between the orientations of successive rows (a median, as for the
+/// positions, so that one gross row does not read as a unit error).
+fn median_turn(rs: &[UnitQuaternion<f64>]) -> f64 {
+    if rs.len() < 2 {
+        return 0.0;
+    }
+    median(
+        &mut rs
+            .windows(2)
+            .map(|w| w[0].angle_to(&w[1]))
+            .collect::<Vec<_>>(),
+    )
 }
 
 fn orientations(
@@ -275,7 +290,7 @@ fn orientations(
         .iter()
         .map(|(q, _)| chain.tool_pose(q, &e).rotation)
         .collect();
-    let (t_m, t_p) = (mean_turn(&measured), mean_turn(&nominal));
+    let (t_m, t_p) = (median_turn(&measured), median_turn(&nominal));
     if t_p < 1e-3 || ACCEPTED.contains(&(t_m / t_p)) {
         return Ok(());
     }
@@ -283,7 +298,7 @@ fn orientations(
     let k = if t_m < t_p { 1.0 / deg } else { deg };
     Err(ScaleMismatch {
         what: format!(
-            "the measured orientations turn by {:.3}° on average from one row to the next where \
+            "the measured orientations turn by a median {:.3}° from one row to the next where \
              the rig's nominal kinematics turn the last link by {:.1}°",
             t_m.to_degrees(),
             t_p.to_degrees()
