@@ -21,7 +21,13 @@ between the parallel axes shows as residual (rigcal's rig adds β there).
 
 Held out: each other recording keeps the fitted arm and tool, and only its world frame is
 refitted (closed-form rigid registration of the predicted points), as `rigcal evaluate
---refit-frame` does. Printed per recording: 3-D position error mean / RMS / max in mm.
+--refit-frame` does. Printed per recording: 3-D position error mean / RMS / max in mm, and,
+when the recording has orientations (roll_deg, pitch_deg, yaw_deg: R = Rz(yaw)·Ry(pitch)·
+Rx(roll)), the angle between the measured and the predicted probe frame, mean / RMS / max in
+degrees. pybotics fits positions only and its tool has no rotation, so the probe's rotation C
+on the flange is the rotation nearest Σ R_predictedᵀ·R_measured over the held-out rows, as
+`rigcal evaluate` fits it for every model; the predicted frame is the refitted world frame's
+rotation times the flange's.
 """
 import csv
 import sys
@@ -49,14 +55,51 @@ def ur10():
 
 def read(directory, every=1):
     """Joint vectors (rad) and measured points (mm) of a recording's `ok` rows."""
-    qs, ps = [], []
+    qs, ps, _ = read_poses(directory, every)
+    return qs, ps
+
+
+def rpy_matrix(roll, pitch, yaw):
+    """R = Rz(yaw)·Ry(pitch)·Rx(roll), angles in radians (rigcal's files)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    rz = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
+    ry = np.array([[cp, 0.0, sp], [0.0, 1.0, 0.0], [-sp, 0.0, cp]])
+    rx = np.array([[1.0, 0.0, 0.0], [0.0, cr, -sr], [0.0, sr, cr]])
+    return rz @ ry @ rx
+
+
+def read_poses(directory, every=1):
+    """Joint vectors (rad), measured points (mm) and measured rotations (3×3, or None when the
+    recording has no orientation) of a recording's `ok` rows."""
+    qs, ps, rs = [], [], []
     with open(f"{directory}/measurements.csv", newline="") as f:
         for row in csv.DictReader(f):
             if row.get("status", "ok") != "ok":
                 continue
             qs.append([float(row[f"q{j}_deg"]) for j in range(1, 7)])
             ps.append([float(row[c]) for c in ("x_mm", "y_mm", "z_mm")])
-    return np.deg2rad(np.array(qs))[::every], np.array(ps)[::every]
+            if row.get("roll_deg"):
+                rs.append(rpy_matrix(*np.deg2rad([float(row[c]) for c in ("roll_deg", "pitch_deg", "yaw_deg")])))
+    rotations = np.array(rs)[::every] if len(rs) == len(qs) and rs else None
+    return np.deg2rad(np.array(qs))[::every], np.array(ps)[::every], rotations
+
+
+def nearest_rotation(m):
+    """The rotation nearest the 3×3 matrix `m` (Frobenius): U·diag(1, 1, det(U·Vᵀ))·Vᵀ."""
+    u, _, vt = np.linalg.svd(m)
+    return u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt))]) @ vt
+
+
+def orientation_errors(robot, qs, measured, world_rotation):
+    """Angles (deg) between the measured and the predicted probe frames: predicted =
+    world_rotation · R_flange(q) · C, C the rotation nearest Σ predictedᵀ·measured."""
+    world = robot.world_frame.copy()
+    robot.world_frame = np.eye(4)
+    flange = np.array([world_rotation @ robot.fk(q)[:3, :3] for q in qs])
+    robot.world_frame = world
+    c = nearest_rotation(sum(f.T @ r for f, r in zip(flange, measured)))
+    cosines = [(np.trace(r.T @ f @ c) - 1.0) / 2.0 for f, r in zip(flange, measured)]
+    return np.degrees(np.arccos(np.clip(cosines, -1.0, 1.0)))
 
 
 def kabsch(model, measured):
@@ -101,13 +144,14 @@ def stats(errors):
 
 
 def held_out(robot, qs, positions):
-    """Position errors with only the world frame refitted (closed form)."""
+    """Position errors with only the world frame refitted (closed form), and that frame's
+    rotation."""
     world = robot.world_frame.copy()
     robot.world_frame = np.eye(4)
     model = predicted(robot, qs)
     robot.world_frame = world
     t = kabsch(model, positions)
-    return positions - (model @ t[:3, :3].T + t[:3, 3])
+    return positions - (model @ t[:3, :3].T + t[:3, 3]), t[:3, :3]
 
 
 def main():
@@ -147,9 +191,14 @@ def main():
     )
     print(f"tool position {robot.tool.position.round(3)} mm")
     for directory in held:
-        q, p = read(directory)
-        m, r, x = stats(held_out(robot, q, p))
-        print(f"held out {directory} ({len(q)} poses, world frame refitted): mean {m:.3f} / RMS {r:.3f} / max {x:.3f} mm")
+        q, p, rotations = read_poses(directory)
+        errors, world_rotation = held_out(robot, q, p)
+        m, r, x = stats(errors)
+        line = f"held out {directory} ({len(q)} poses, world frame refitted): mean {m:.3f} / RMS {r:.3f} / max {x:.3f} mm"
+        if rotations is not None:
+            a = orientation_errors(robot, q, rotations, world_rotation)
+            line += f"; orientation mean {a.mean():.3f} / RMS {np.sqrt(np.mean(a**2)):.3f} / max {a.max():.3f} deg"
+        print(line)
 
 
 if __name__ == "__main__":

@@ -137,8 +137,11 @@ if os.path.exists("%s/eval-peer-split-B.json" % out):
 if os.path.exists("%s/peer.txt" % out):
     cells = {}
     for line in open("%s/peer.txt" % out):
-        m = re.search(r"rec-([BCD]) .*mean ([0-9.]+) / RMS ([0-9.]+) / max ([0-9.]+)", line)
+        m = re.search(r"rec-([BCD]) .*mean ([0-9.]+) / RMS ([0-9.]+) / max ([0-9.]+) mm", line)
         if m:
             cells[m.group(1)] = "%s / %s / %s" % m.group(2, 3, 4)
+            o = re.search(r"orientation mean [0-9.]+ / RMS ([0-9.]+)", line)
+            if o:
+                cells[m.group(1)] += ", %s°" % o.group(1)
     print("| peer split: pybotics (25 MDH parameters) | " + " | ".join(cells.get(s, "-") for s in "BCD") + " |")
 EOF
