@@ -400,17 +400,15 @@ fn a_fit_beyond_the_rigs_stated_bounds_is_an_error_and_writes_nothing() {
 
 // ---- 2b. no non-finite value reaches a written model ---------------------------------------
 
-#[test]
-fn a_model_holding_a_non_finite_value_is_not_written() {
-    let dir = tempfile::tempdir().unwrap();
-    let rig = Rig::load(Path::new(RIG)).unwrap();
-    let file = ModelFile::new(
-        &rig,
+/// A conventional model of `rig` holding only Δθ1 = `value` (deg), as a file would.
+fn theta1_model(rig: &Rig, value: f64) -> ModelFile {
+    ModelFile::new(
+        rig,
         Provenance::default(),
         ModelBody::Constant {
             parameters: vec![ParamEntry {
                 name: "theta1".into(),
-                value: f64::NAN,
+                value,
                 unit: "deg".into(),
                 sigma: Some(0.1),
             }],
@@ -422,7 +420,14 @@ fn a_model_holding_a_non_finite_value_is_not_written() {
                 iterations: 0,
             },
         },
-    );
+    )
+}
+
+#[test]
+fn a_model_holding_a_non_finite_value_is_not_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let rig = Rig::load(Path::new(RIG)).unwrap();
+    let file = theta1_model(&rig, f64::NAN);
     let path = dir.path().join("model.json");
     let e = file.save(&path).expect_err("a NaN was written");
     assert!(
@@ -438,27 +443,7 @@ fn a_model_holding_a_non_finite_value_is_not_written() {
 fn a_model_file_beyond_the_rigs_bounds_is_refused_when_read() {
     let dir = tempfile::tempdir().unwrap();
     let rig = Rig::load(Path::new(RIG)).unwrap();
-    let model = |value: f64| {
-        ModelFile::new(
-            &rig,
-            Provenance::default(),
-            ModelBody::Constant {
-                parameters: vec![ParamEntry {
-                    name: "theta1".into(),
-                    value,
-                    unit: "deg".into(),
-                    sigma: Some(0.1),
-                }],
-                fit: FitSummary {
-                    kappa_eq4: 1.0,
-                    before: ResidualStats::default(),
-                    after: ResidualStats::default(),
-                    sigma0_mm: 0.0,
-                    iterations: 0,
-                },
-            },
-        )
-    };
+    let model = |value: f64| theta1_model(&rig, value);
     let (small, huge) = (dir.path().join("small.json"), dir.path().join("huge.json"));
     model(0.5).save(&small).unwrap();
     model(2000.0).save(&huge).unwrap();

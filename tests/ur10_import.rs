@@ -13,10 +13,12 @@
 use nalgebra::{UnitQuaternion, Vector3};
 use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-const DATA: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/ur10-landgraf");
+mod common;
+use common::ur10::{rig as ur10_rig, DATA};
+
 const JOINTS: &str =
     "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint";
 const SERIES: [&str; 4] = [
@@ -39,24 +41,6 @@ fn text(o: &Output) -> String {
         String::from_utf8_lossy(&o.stdout),
         String::from_utf8_lossy(&o.stderr)
     )
-}
-
-/// The shipped UR10 URDF as a rig in `dir`.
-fn ur10_rig(dir: &Path) -> PathBuf {
-    let out = dir.join("ur10.toml");
-    let o = rigcal(&[
-        "rig",
-        "from-urdf",
-        &format!("{DATA}/ur10.urdf"),
-        "--base",
-        "base_link",
-        "--tip",
-        "tool0",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", text(&o));
-    out
 }
 
 /// `rigcal import FILE --rig RIG --joints … ARGS --out DIR`.
