@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Times `rigcal identify` against pybotics' least-squares calibration on the same recording.
+# (scripts/peers.sh times rigcal against pybotics and FIGAROH together, on issue 33's structured
+# recording and a UR10 series, with rigcal's median over several runs.)
 #
 # Install the peer once (Python 3.8+; pybotics pulls numpy, scipy and attrs):
 #     pip install pybotics          # tested with pybotics 3.1.2, scipy 1.x

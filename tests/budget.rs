@@ -224,12 +224,15 @@ fn d_optimal_locations_have_a_larger_determinant_than_the_kappa_rules() {
 
 /// Fig. 7 at the paper's settings (Cartesian division, 20 per region, the cap of 130) with
 /// D-optimal locations: regions and FCMAC below 0.1 mm on the spherical path (the κ rule
-/// leaves the regions at 0.129 mm at this seed).
+/// leaves the regions at 0.129 mm at this seed). The paper's split order, worst first: the
+/// library's excess × size leaves this seed's regions at 0.124 mm on this path (seed 1 is one of
+/// the two of seeds 1–20 where it misses, docs/seeds.md).
 #[test]
 fn d_optimal_fig7_at_the_cap_keeps_the_regions_below_the_demand() {
     let model = calibrate(&CalibrationOptions {
         space: Space::Cartesian,
         selection: Selection::DOptimal,
+        split_order: rigcal_model::division::SplitOrder::Worst,
         ..Default::default()
     });
     let (regions, _, _) = counts(&model);

@@ -225,3 +225,70 @@ fn table_over_slcan_on_a_pseudo_terminal_moves_faults_and_resets() {
         "{waited:?}"
     );
 }
+
+/// The table's touch-probe latch through the real transports: the drives behind slcan and the
+/// panel on their own pseudo-terminals, served on one world, the panel's touch output wired to
+/// the z drive's probe input. The latched height is the world's contact height to the count,
+/// where the position read after the touch packet came is higher by the latencies on the way.
+#[test]
+fn the_z_drive_latches_the_exact_contact_height_over_pseudo_terminals() {
+    let _g = pty_lock();
+    let (rig, mut cfg, s) = setup();
+    cfg.table.touch_probe = true;
+    let Instrument::TablePanel(tp) = &rig.instrument else {
+        panic!()
+    };
+    let q = deg(&[20.0, 45.0, -100.0, 0.0, 0.0]);
+    s.physics.lock().unwrap().arm_commanded(&q, Duration::ZERO);
+    let tip = rig
+        .chain
+        .position(&q, &ErrorParams::zeros(rig.chain.layout()));
+    // The nominal world: the panel centre is the table position plus the registration, so the
+    // contact is at the table height of the tip.
+    let contact = (tip - tp.table_to_world_mm).z;
+    let (x, y) = (
+        tip.x - tp.table_to_world_mm.x - 20.0,
+        tip.y - tp.table_to_world_mm.y + 10.0,
+    );
+    let emus = sim_emulators(&rig, &cfg, &s).unwrap();
+    let (table_end, table_host) = pty_pair();
+    let (panel_end, panel_host) = pty_pair();
+    let _table_served = serve_bytes(
+        SlcanAdapter::new(emus.table.emulator),
+        table_end,
+        s.clock.clone(),
+    );
+    let _panel_served = serve_bytes(emus.panel.emulator, panel_end, s.clock.clone());
+    let bus = SlcanBus::open(table_host, SlcanBusConfig::default()).unwrap();
+    let mut table = CanOpenTable::new(bus, &cfg.table, s.clock.clone()).unwrap();
+    let mut panel = PenMountPanel::new(
+        panel_host,
+        tp.panel_size_mm,
+        tp.panel_counts,
+        &cfg.panel,
+        s.clock.clone(),
+    );
+
+    table.enable(T).unwrap();
+    table.start_move([x, y, contact - 1.0], T).unwrap();
+    table.wait_reached(T).unwrap();
+    table.arm_touch_probe(T).unwrap();
+    assert_eq!(table.latched_z(T).unwrap(), None, "nothing latched yet");
+    panel.clear().unwrap();
+    table.set_speed(2.0, T).unwrap();
+    table.start_move([x, y, contact + 0.5], T).unwrap();
+    panel.wait_touch(T).unwrap();
+    let read = table.position(T).unwrap()[2];
+    table.halt(T).unwrap();
+    let latched = table.latched_z(T).unwrap().expect("a latched edge");
+    // To the count (1000 counts/mm): the world's contact, rounded.
+    assert!(
+        (latched - (contact * 1000.0).round() / 1000.0).abs() < 1e-9,
+        "latched {latched} mm, contact {contact} mm"
+    );
+    // The read came at least the panel's 2 ms after the touch, at 2 mm/s: 0.004 mm higher.
+    assert!(
+        read - latched >= 0.0035,
+        "read {read} mm, latched {latched} mm"
+    );
+}

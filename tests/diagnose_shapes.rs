@@ -19,18 +19,7 @@ use std::time::Instant;
 
 /// `kind:index` of each named effect, as `tests/diagnose.rs` names them.
 fn names(r: &Report) -> Vec<String> {
-    r.effects
-        .iter()
-        .map(|e| {
-            let idx = e
-                .joint
-                .map(|j| j.to_string())
-                .or(e.axis.clone())
-                .or(e.axes.as_ref().map(|a| a.join("")))
-                .unwrap_or_default();
-            format!("{}:{idx}", e.kind)
-        })
-        .collect()
+    library_names(r)
 }
 
 fn run(c: &Case) -> Report {

@@ -399,9 +399,14 @@ fn ur10_claimed_effects_do_not_raise_the_held_out_error() {
             "{what}: claimed {:?}; series C (frame refitted) {:?}",
             ph.effects, ph.heldout
         );
-        if what == "blocks, B and D" {
-            let (_, geometry, physics) = &ph.heldout[0];
-            assert!(physics <= &(geometry + 1e-9), "{physics} > {geometry}");
-        }
+        // Both rules now: a claim may not raise the recording's own split, nor a held-out
+        // series beyond its noise. Series C took no part. 1 nm of slack: with nothing claimed
+        // the frame refit of C with and without "the effects" differs by 1.2e-9 mm, iteration
+        // noise, not a rise.
+        let (_, geometry, physics) = &ph.heldout[0];
+        assert!(
+            physics <= &(geometry + 1e-6),
+            "{what}: {physics} > {geometry}"
+        );
     }
 }

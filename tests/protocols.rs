@@ -7,7 +7,8 @@ use rigcal_devices::protocols::can::{CanFrame, CanFrameError, CanId};
 use rigcal_devices::protocols::canopen::{
     next_controlword_towards_enabled, od, CanOpenError, CanOpenMessage, Controlword, DriveState,
     EmcyErrorCode, Emergency, Heartbeat, Nmt, NmtCommand, NmtState, NodeId, PdoDirection,
-    SdoAbortCode, SdoData, SdoRequest, SdoResponse, Statusword,
+    SdoAbortCode, SdoData, SdoRequest, SdoResponse, Statusword, TouchProbeFunction,
+    TouchProbeStatus,
 };
 use rigcal_devices::protocols::movemaster::{
     quantise_increment, quantise_joint_move, Acceleration, Command, Decimal, ErrorStatus,
@@ -714,6 +715,51 @@ fn cia402_statusword_states_and_bits() {
     assert!(Statusword(0x1000).setpoint_acknowledge());
     assert!(Statusword(0x2000).following_error());
     assert!(Statusword(0x0080).warning());
+}
+
+/// The touch probe objects (CiA 402 / IEC 61800-7-201, as drive manuals print them: e.g. the
+/// MOONS' EtherCAT drive manual §3.10, Beckhoff's AX8000 object pages 0x60B8–0x60BC).
+#[test]
+fn cia402_touch_probe_objects_and_bits() {
+    assert_eq!(od::TOUCH_PROBE_FUNCTION, 0x60B8);
+    assert_eq!(od::TOUCH_PROBE_STATUS, 0x60B9);
+    assert_eq!(od::TOUCH_PROBE_1_POSITIVE, 0x60BA);
+    assert_eq!(od::TOUCH_PROBE_1_NEGATIVE, 0x60BB);
+    // Probe 1 enabled (bit 0), first event (bit 1 = 0), its own input (bits 2–3 = 00),
+    // the positive edge sampled (bit 4).
+    let armed = TouchProbeFunction::probe1_first_positive_edge();
+    assert_eq!(armed.0, 0x0011);
+    assert!(armed.probe1_enabled() && armed.probe1_positive_edge());
+    assert!(!armed.probe1_continuous() && !armed.probe1_negative_edge());
+    assert_eq!(armed.probe1_source(), 0);
+    assert_eq!(TouchProbeFunction::OFF.0, 0);
+    // Beckhoff's AX8000 default 0x3838 ("configure the source via 0x60D0"): both probes off,
+    // source `10` (0x60D0) and both edges sampled, per probe.
+    let beckhoff = TouchProbeFunction(0x3838);
+    assert_eq!(beckhoff.probe1_source(), 0b10);
+    assert!(beckhoff.probe1_positive_edge() && beckhoff.probe1_negative_edge());
+    assert!(!beckhoff.probe1_enabled() && !beckhoff.probe1_continuous());
+    assert!(TouchProbeFunction(0x0002).probe1_continuous());
+    assert_eq!(TouchProbeFunction(0x0004).probe1_source(), 0b01); // the zero impulse
+                                                                  // 0x60B9: bit 0 enabled, bit 1 positive edge stored, bit 2 negative edge stored; probe
+                                                                  // 2's bits (8–10) are not probe 1's.
+    assert_eq!(TouchProbeStatus::probe1(true, true).0, 0x0003);
+    assert_eq!(TouchProbeStatus::probe1(true, false).0, 0x0001);
+    assert_eq!(TouchProbeStatus::probe1(false, false).0, 0x0000);
+    let st = TouchProbeStatus(0x0005);
+    assert!(st.probe1_enabled() && st.probe1_negative_stored() && !st.probe1_positive_stored());
+    let probe2 = TouchProbeStatus(0x0700);
+    assert!(!probe2.probe1_enabled() && !probe2.probe1_positive_stored());
+    assert!(!probe2.probe1_negative_stored());
+    // On the wire: an expedited write of 0x0011 to 0x60B8 of node 3, byte for byte.
+    let req = SdoRequest::Download {
+        index: od::TOUCH_PROBE_FUNCTION,
+        sub: 0,
+        data: SdoData::from_u16(armed.0),
+    };
+    let f = req.encode(node(3));
+    assert_eq!(f.id().raw(), 0x603);
+    assert_eq!(f.data(), &[0x2B, 0xB8, 0x60, 0x00, 0x11, 0x00, 0x00, 0x00]);
 }
 
 #[test]

@@ -6,7 +6,9 @@
 //! neither stop the bring-up nor the session; drives answering late get their contacts
 //! refused and repeated, the latency kept in the recording, and a bus late for every contact
 //! ends the session as a fault; a touch that comes while the approach's move is still being
-//! started, or whose first packet is corrupt, costs the contact instead of biasing it.
+//! started, or whose first packet is corrupt, costs the contact instead of biasing it; and
+//! where the z drive latches the contact height (`[devices.table] touch_probe = true`), drives
+//! 20–150 ms late move no height, while the position read after the touch would be that late.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -377,21 +379,24 @@ struct LateFinalReads {
     late: std::ops::Range<usize>,
     finals: usize,
     creeping: bool,
-    late_reads: Arc<AtomicBool>,
+    late_reads: Arc<LateLog>,
+}
+
+/// What [`LateFinalReads`] saw: whether a late read happened, and the z each late read gave.
+#[derive(Default)]
+struct LateLog {
+    happened: AtomicBool,
+    z_mm: Mutex<Vec<f64>>,
 }
 
 impl LateFinalReads {
-    fn wrap(
-        opened: &mut OpenedRig,
-        delay: Duration,
-        late: std::ops::Range<usize>,
-    ) -> Arc<AtomicBool> {
+    fn wrap(opened: &mut OpenedRig, delay: Duration, late: std::ops::Range<usize>) -> Arc<LateLog> {
         let faults = table_faults(opened);
         let InstrumentDevices::TablePanel { table, .. } = &mut opened.devices.instrument else {
             panic!("a table rig")
         };
         let inner = std::mem::replace(table, Box::new(rigcal_devices::devices::MockTable::new()));
-        let late_reads = Arc::new(AtomicBool::new(false));
+        let late_reads = Arc::new(LateLog::default());
         *table = Box::new(LateFinalReads {
             inner,
             faults,
@@ -433,10 +438,13 @@ impl Table for LateFinalReads {
         if !late {
             return self.inner.position(t);
         }
-        self.late_reads.store(true, Ordering::SeqCst);
+        self.late_reads.happened.store(true, Ordering::SeqCst);
         self.faults.lock().unwrap().extra_delay = self.delay;
         let r = self.inner.position(t);
         self.faults.lock().unwrap().extra_delay = Duration::ZERO;
+        if let Ok(p) = &r {
+            self.late_reads.z_mm.lock().unwrap().push(p[2]);
+        }
         r
     }
     fn halt(&mut self, t: Duration) -> Result<[f64; 3], DeviceError> {
@@ -453,6 +461,12 @@ impl Table for LateFinalReads {
     }
     fn begin_pass(&mut self) {
         self.inner.begin_pass()
+    }
+    fn arm_touch_probe(&mut self, t: Duration) -> Result<(), DeviceError> {
+        self.inner.arm_touch_probe(t)
+    }
+    fn latched_z(&mut self, t: Duration) -> Result<Option<f64>, DeviceError> {
+        self.inner.latched_z(t)
     }
 }
 
@@ -483,7 +497,10 @@ fn a_late_contact_reading_is_refused_and_repeated_and_the_latency_recorded() {
     let mut opened = sim_devices(&sc);
     let late = LateFinalReads::wrap(&mut opened, Duration::from_millis(40), 6..7);
     let report = run_session(&sc.rig, opened, &pts, options(&b), &Progress::Quiet).unwrap();
-    assert!(late.load(Ordering::SeqCst), "the late reading happened");
+    assert!(
+        late.happened.load(Ordering::SeqCst),
+        "the late reading happened"
+    );
     assert_eq!(report.ok, pts.len(), "{report:?}");
     assert!(
         report.retries > normal.retries,
@@ -514,6 +531,94 @@ fn drives_late_for_every_contact_end_the_session_as_a_fault_not_as_biased_rows()
     // No biased row was written: every ok row's reading came in time.
     let l = ok_latencies(dir.path());
     assert!(l.iter().all(|l| *l <= 3.0), "{l:?}");
+}
+
+/// The shipped scenario without its time-dependent effect (thermal drift: late drives make a
+/// session's times, and so its drift, differ), on the shipped rig with its z drive latching the
+/// contact heights (`touch_probe = true`), as files in `dir`.
+fn latching_scenario(dir: &Path) -> Scenario {
+    let rig_text = std::fs::read_to_string("rigs/rv-m2.toml").unwrap();
+    let rig_text = rig_text.replace("\n[devices.panel]", "touch_probe = true\n\n[devices.panel]");
+    let rig = dir.join("latching.toml");
+    std::fs::write(&rig, rig_text).unwrap();
+    let mut doc: toml::Table = std::fs::read_to_string(SCENARIO).unwrap().parse().unwrap();
+    doc.insert("rig".into(), rig.display().to_string().into());
+    let effects = doc["effects"].as_array_mut().unwrap();
+    effects.retain(|e| !e["kind"].as_str().unwrap().contains("drift"));
+    let path = dir.join("scenario.toml");
+    std::fs::write(&path, toml::to_string(&doc).unwrap()).unwrap();
+    let sc = Scenario::load(&path, None).unwrap();
+    let cfg = rigcal_devices::config::DevicesConfig::read(&sc.rig);
+    assert!(cfg.table.touch_probe, "the rig latches");
+    sc
+}
+
+#[test]
+fn a_latched_contact_height_does_not_move_with_drives_20_to_150_ms_late() {
+    let base = tempfile::tempdir().unwrap();
+    let sc = latching_scenario(base.path());
+    let pts = points(&sc.rig, 6);
+    let on_time = base.path().join("on-time");
+    let normal = uninterrupted(&sc, &pts, &on_time);
+    assert_eq!(normal.ok, pts.len(), "{normal:?}");
+    // The final approach's speed (the latency rule: 0.005 mm over 10 + 2 ms).
+    let speed = 0.005 / 0.012;
+    let kept = [
+        "status",
+        "table_x_mm",
+        "table_y_mm",
+        "table_z_mm",
+        "panel_u_mm",
+        "panel_v_mm",
+        "x_mm",
+        "y_mm",
+        "z_mm",
+    ];
+    for ms in [20, 60, 150] {
+        let dir = base.path().join(format!("late-{ms}"));
+        let delay = Duration::from_millis(ms);
+        // Every point's final reading (after the registration's four) answers `ms` late.
+        let mut opened = sim_devices(&sc);
+        let late = LateFinalReads::wrap(&mut opened, delay, 5..usize::MAX);
+        let report = run_session(&sc.rig, opened, &pts, options(&dir), &Progress::Quiet).unwrap();
+        // Nothing refused, nothing repeated: a latched height is never late.
+        assert_eq!(report.ok, pts.len(), "{ms} ms: {report:?}");
+        assert_eq!(report.retries, normal.retries, "{ms} ms: {report:?}");
+        for col in kept {
+            assert_eq!(
+                column(&dir, col),
+                column(&on_time, col),
+                "{col}, {ms} ms late"
+            );
+        }
+        // The latency is still recorded: the points' readings came `ms` late.
+        let l = ok_latencies(&dir);
+        assert!(l[4..].iter().all(|l| *l >= ms as f64), "{ms} ms: {l:?}");
+        // The position read after the touch would have been biased: the table rose at the
+        // approach speed for the panel's and the bus's latencies and the delay.
+        let read = late.z_mm.lock().unwrap().clone();
+        let latched: Vec<f64> = column(&dir, "table_z_mm")
+            .iter()
+            .zip(column(&dir, "region"))
+            .filter(|(z, r)| !z.is_empty() && r != "reg")
+            .map(|(z, _)| z.parse().unwrap())
+            .collect();
+        assert_eq!(read.len(), latched.len(), "{read:?} {latched:?}");
+        let biases: Vec<String> = read
+            .iter()
+            .zip(&latched)
+            .map(|(r, z)| format!("{:.4}", r - z))
+            .collect();
+        eprintln!("{ms} ms late: read-after-touch z minus latched z (mm): {biases:?}");
+        for (r, z) in read.iter().zip(&latched) {
+            let bias = r - z;
+            let least = speed * delay.as_secs_f64();
+            assert!(
+                (least..=least + speed * 0.03).contains(&bias),
+                "{ms} ms: read {r} mm, latched {z} mm: {bias:.4} mm, not ≥ {least:.4} mm"
+            );
+        }
+    }
 }
 
 /// `rigcal session` on SIGINT: a clear message, a non-zero exit, a resumable session that

@@ -42,6 +42,10 @@ pub struct Args {
     /// (docs/seeds.md); 0: on the test points' maximum, the paper's rule [default: 1]
     #[arg(long, value_name = "Z")]
     confidence_z: Option<f64>,
+    /// Fit every region's CEPs by plain least squares, the paper's, instead of rigcal's MAP
+    /// estimate around its parent's CEPs (docs/seeds.md: the departure's measured effect).
+    #[arg(long)]
+    plain_least_squares: bool,
     /// Run section 6 alone at each of these seeds (`1-20`, or `3,8,10`) and print, per claim,
     /// the pass rate, the median and the worst seed (docs/seeds.md); writes `seeds.md` and
     /// `seeds.csv` to --out (default out/seeds then).
@@ -83,6 +87,7 @@ pub fn run(a: Args) -> Result<()> {
             learner_tolerance: a.learner_tolerance,
             fcmac_training: a.fcmac_training.into(),
             confidence_z: a.confidence_z,
+            plain_least_squares: a.plain_least_squares,
         };
         let part = if a.rig {
             SweepPart::Section7
@@ -99,6 +104,7 @@ pub fn run(a: Args) -> Result<()> {
         learner_tolerance: a.learner_tolerance,
         fcmac_training: a.fcmac_training.into(),
         confidence_z: a.confidence_z,
+        plain_least_squares: a.plain_least_squares,
     };
     rigcal_paper::demo::run(&opts, &mut |event| match event {
         DemoEvent::Text(text) => print!("{text}"),

@@ -156,7 +156,7 @@ pub fn run(a: Args) -> Result<()> {
         let errors = rigcal_model::model::effects::errors_with_effects(
             &id.chain,
             &id.fit.params,
-            &rig.link_masses,
+            &rig.masses_with_payload(),
             &effects,
             &h.recording,
         );

@@ -24,7 +24,7 @@ use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use rigcal_core::kinematics::{ErrorParams, Robot};
 use rigcal_core::recording::Recording;
-use rigcal_model::diagnosis::{linalg::rms3, standard_fit};
+use rigcal_model::diagnosis::{linalg::rms3, standard_fit, Report};
 use rigcal_model::effects::EffectKind;
 use rigcal_model::identification::random_poses;
 use rigcal_sim::world::{
@@ -288,8 +288,13 @@ fn range(poses: &[Vec<f64>], j: usize) -> (f64, f64) {
 
 /// An out-of-library case of `class` at `size` × the floor (visible), seed `seed`.
 pub fn out_of_library(class: Class, seed: u64, size: f64) -> Case {
+    out_of_library_n(class, seed, size, MEASUREMENTS)
+}
+
+/// [`out_of_library`] with `n` measurements.
+pub fn out_of_library_n(class: Class, seed: u64, size: f64, n: usize) -> Case {
     let mut sc = scenario("rv-m2-ideal", 20_000 + seed, "", NOISE_MM);
-    let (p, r) = poses(&sc, MEASUREMENTS, 20_000 + seed);
+    let (p, r) = poses(&sc, n, 20_000 + seed);
     let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_mul(7919) ^ class as u64);
     let moving: Vec<usize> = (0..sc.rig.chain.dof())
         .filter(|&j| {
@@ -562,8 +567,13 @@ pub fn library_cases() -> Vec<LibraryCase> {
 /// An in-library case at `size` × the floor (visible), or at the size of `tests/diagnose.rs`
 /// when `size` is None.
 pub fn in_library(case: &LibraryCase, seed: u64, size: Option<f64>) -> Case {
+    in_library_n(case, seed, size, MEASUREMENTS)
+}
+
+/// [`in_library`] with `n` measurements.
+pub fn in_library_n(case: &LibraryCase, seed: u64, size: Option<f64>, n: usize) -> Case {
     let mut sc = scenario(case.rig, 30_000 + seed, "", NOISE_MM);
-    let (p, r) = poses(&sc, MEASUREMENTS, 30_000 + seed);
+    let (p, r) = poses(&sc, n, 30_000 + seed);
     let factor = match size {
         None => 1.0,
         Some(x) => x * floor() / visible_size(&sc, &p, &r, Some((case.make)(1.0)), None),
@@ -583,8 +593,13 @@ pub fn in_library(case: &LibraryCase, seed: u64, size: Option<f64>) -> Case {
 
 /// A null recording: geometry and noise `noise_mm` only.
 pub fn null(seed: u64, noise_mm: f64) -> Case {
+    null_n(seed, noise_mm, MEASUREMENTS)
+}
+
+/// [`null`] with `n` measurements.
+pub fn null_n(seed: u64, noise_mm: f64, n: usize) -> Case {
     let sc = scenario("rv-m2-ideal", 40_000 + seed, "", noise_mm);
-    let recording = recording(&sc, MEASUREMENTS, 40_000 + seed);
+    let recording = recording(&sc, n, 40_000 + seed);
     Case {
         label: format!("null σ {noise_mm}"),
         scenario: sc,
@@ -592,4 +607,21 @@ pub fn null(seed: u64, noise_mm: f64) -> Case {
         truth: Truth::Null,
         visible_mm: 0.0,
     }
+}
+
+/// `kind:index` of each effect a report names (`backlash:3`, `table_squareness:xy`), as
+/// [`LibraryCase::name`] spells them.
+pub fn library_names(r: &Report) -> Vec<String> {
+    r.effects
+        .iter()
+        .map(|e| {
+            let idx = e
+                .joint
+                .map(|j| j.to_string())
+                .or(e.axis.clone())
+                .or(e.axes.as_ref().map(|a| a.join("")))
+                .unwrap_or_default();
+            format!("{}:{idx}", e.kind)
+        })
+        .collect()
 }

@@ -135,6 +135,13 @@ pub struct CalibrationOptions {
     /// tests ([`TestPlan`](rigcal_model::division::TestPlan)); the default, every test point
     /// afresh in one batch, is the paper's.
     pub test_plan: rigcal_model::division::TestPlan,
+    /// Which failing region splits next (planning and offline; it matters at the region cap):
+    /// [`SplitOrder`](rigcal_model::division::SplitOrder), the library's default unless a
+    /// preset says otherwise.
+    pub split_order: rigcal_model::division::SplitOrder,
+    /// Regions' CEPs as a MAP estimate around their parent's (true, rigcal's) or the paper's
+    /// plain least squares (false; [`DivisionOptions::map_prior`](rigcal_model::division::DivisionOptions)).
+    pub map_prior: bool,
     /// Offline on a recording in an instrument's frame (a free measurement frame, registered
     /// first): which error parameters each region fits; the rest are held at the conventional
     /// fit's values in every region ([`RegionParams`]).
@@ -172,6 +179,8 @@ impl Default for CalibrationOptions {
             unmeasurable_depth: None,
             unmeasurable_halves: false,
             test_plan: rigcal_model::division::TestPlan::default(),
+            split_order: rigcal_model::division::SplitOrder::default(),
+            map_prior: true,
             region_params: RegionParams::default(),
         }
     }

@@ -111,6 +111,8 @@ fn calibrate_on(
         learner_tolerance: opts.learner_tolerance_in_use(),
         confidence_z: opts.confidence_z,
         test_plan: opts.test_plan,
+        split_order: opts.split_order,
+        map_prior: opts.map_prior,
         // A registered recording is divided over its own extent, and a half it holds too few
         // points of is a region without measurements (its neighbours' CEPs, the learner
         // generalises), not the end of its parent's split: a recording covers its box unevenly.

@@ -60,6 +60,9 @@ pub struct DemoOptions {
     pub fcmac_training: FcmacTraining,
     /// The division's acceptance ([`CalibrationOptions::confidence_z`]); None: the library's.
     pub confidence_z: Option<f64>,
+    /// Regions' CEPs by the paper's plain least squares instead of rigcal's MAP estimate
+    /// around the parent's ([`CalibrationOptions::map_prior`] false): the departure's measure.
+    pub plain_least_squares: bool,
 }
 
 /// What the demo tells its caller as it goes.
@@ -300,9 +303,11 @@ pub const TUNING_SEC7_PATH_MM: [[f64; 3]; 2] = [[300.0, 330.0, 40.0], [-300.0, 4
 fn sec7_options(o: &DemoOptions, paths: PathSet, joint_commands: bool) -> Sec7Options {
     let mut calibration = o.preset.section7_calibration();
     calibration.seed = o.seed;
-    calibration.learner_tolerance = o.learner_tolerance;
+    // `--learner-tolerance` overrides the preset's section 7 choice.
+    calibration.learner_tolerance = o.learner_tolerance.or(calibration.learner_tolerance);
     calibration.learner_settings.training = o.fcmac_training;
     calibration.confidence_z = o.confidence_z.unwrap_or(calibration.confidence_z);
+    calibration.map_prior = !o.plain_least_squares;
     Sec7Options {
         calibration,
         path_points: o.path_points,
@@ -399,6 +404,7 @@ impl Demo<'_> {
         o.learner_tolerance = self.o.learner_tolerance;
         o.learner_settings.training = self.o.fcmac_training;
         o.confidence_z = self.o.confidence_z.unwrap_or(o.confidence_z);
+        o.map_prior = !self.o.plain_least_squares;
         o
     }
 

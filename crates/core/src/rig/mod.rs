@@ -8,6 +8,7 @@
 //! name = "Mitsubishi RV-M2"
 //! base = { theta_deg = 90, d_mm = 400, a_mm = -80, alpha_deg = 180, beta_deg = 0 }
 //! tool = { a_mm = 170 }                       # or xyz_mm + rpy_deg, or matrix (4x4, mm)
+//! payload = { kg = 0.4, com_mm = [0, 0, 30] }  # carried while recorded, in the tool frame
 //! [[robot.joints]]
 //! name = "J1"
 //! type = "revolute"                          # or "prismatic" (limits_mm)
@@ -218,6 +219,29 @@ pub struct Rig {
     /// states them (`mass_kg`, `com_mm` in `[[robot.joints]]`; `rig from-urdf` fills them from
     /// the URDF's `<inertial>`).
     pub link_masses: Vec<Option<LinkMass>>,
+    /// What the arm carries at the tool while it is recorded (`payload` in `[robot]`: a
+    /// tracker's reflector and its adapter, a gripper), its centre of mass in the tool frame;
+    /// None when the rig file states none. It loads every joint's gravity torque.
+    pub payload: Option<LinkMass>,
+}
+
+impl Rig {
+    /// The link masses with the payload added to the last link's (their combined mass at
+    /// their combined centre, both in the tool frame): gravity torques are linear in mass ×
+    /// position, so the combination loads every joint exactly as the two do. The last link
+    /// must have a mass of its own for the combination (else the links' masses stay as they
+    /// are: a model that knows the payload but not the link it sits on knows too little).
+    pub fn masses_with_payload(&self) -> Vec<Option<LinkMass>> {
+        let mut m = self.link_masses.clone();
+        if let (Some(p), Some(Some(last))) = (self.payload, m.last_mut()) {
+            let kg = last.kg + p.kg;
+            if kg > 0.0 {
+                last.com_mm = (last.com_mm * last.kg + p.com_mm * p.kg) / kg;
+                last.kg = kg;
+            }
+        }
+        m
+    }
 }
 
 /// A link's mass and centre of mass.
@@ -266,6 +290,18 @@ struct RawRobot {
     tool: RawFixed,
     #[serde(default)]
     marker_mm: Option<[f64; 3]>,
+    /// What the arm carries at the tool while recorded.
+    #[serde(default)]
+    payload: Option<RawPayload>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPayload {
+    kg: f64,
+    /// In the tool frame (mm); the tool frame's origin when absent.
+    #[serde(default)]
+    com_mm: Option<[f64; 3]>,
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -552,7 +588,25 @@ impl Validator {
                 text: String::new(),
             },
             link_masses,
+            payload: self.payload(raw.robot.payload.as_ref())?,
         })
+    }
+
+    fn payload(&self, raw: Option<&RawPayload>) -> Result<Option<LinkMass>, RigError> {
+        let Some(p) = raw else {
+            return Ok(None);
+        };
+        if !(p.kg.is_finite() && p.kg >= 0.0) {
+            return Err(self.invalid("robot.payload.kg", "must be a finite mass ≥ 0 (kg)"));
+        }
+        let c = p.com_mm.unwrap_or([0.0; 3]);
+        for v in c {
+            self.length("robot.payload.com_mm", v)?;
+        }
+        Ok(Some(LinkMass {
+            kg: p.kg,
+            com_mm: Vector3::from(c),
+        }))
     }
 
     fn link_mass(&self, i: usize, j: &RawJoint) -> Result<Option<LinkMass>, RigError> {

@@ -15,6 +15,14 @@
 //! waiting when the wait begins (it came while a slow or repeated exchange was starting the
 //! move) has its latency counted from the panel's clear, and a packet the panel dropped during
 //! the wait (bad checksum, out of range; the first touch may have been it) costs the contact.
+//!
+//! Where the table latches the contact height itself ([`Approach::latch`], the rig file's
+//! `[devices.table] touch_probe = true`, conventions §8's CiA 402 touch probe), the z drive's
+//! latch is armed before the move and the height is the position it latched at the touch's
+//! positive edge, read once the touch packet is in: no latency, of the panel, the bus or the
+//! host, biases it. The panel still gives (u, v) and the touch/release sequencing, and the
+//! position read after the touch still gives x and y (standing still) and the latency, which
+//! the recording keeps.
 
 use std::time::Duration;
 
@@ -51,6 +59,10 @@ pub struct Contact {
     /// come: its true latency is unknown and at most that. `None` where it was not measured
     /// ([`measure_contact`] has no clock).
     pub read_latency: Option<Duration>,
+    /// True when `table_mm[2]` is the height the z drive latched at the touch (its
+    /// touch probe), which no latency biases; false when it is the position read after the
+    /// touch packet.
+    pub latched: bool,
 }
 
 impl Contact {
@@ -89,6 +101,7 @@ pub fn measure_contact(
                 table_mm,
                 touch,
                 read_latency: None,
+                latched: false,
             })
         }
         Err(DeviceError::Timeout { .. }) => {
@@ -119,6 +132,9 @@ pub struct Approach {
     pub speed_mm_s: f64,
     /// How long to wait for the touch.
     pub timeout: Duration,
+    /// Arm the z drive's touch-probe latch before the move and take the height it latched
+    /// (see the module docs).
+    pub latch: bool,
 }
 
 /// How the wait for a touch ended.
@@ -149,6 +165,9 @@ pub async fn approach(
     let cleared = pace.now();
     let before = panel.run(IO, |p| Ok(p.stats())).await?;
     let speed = a.speed_mm_s;
+    if a.latch {
+        table.run(IO, |t| t.arm_touch_probe(IO)).await?;
+    }
     table.run(IO, move |t| t.set_speed(speed, IO)).await?;
     let target = [a.xy_mm[0], a.xy_mm[1], a.z_to_mm];
     table.run(IO, move |t| t.start_move(target, IO)).await?;
@@ -169,16 +188,25 @@ pub async fn approach(
     match ended {
         Ended::Touch(touch, came_after) => {
             let asked = pace.now();
-            let table_mm = table.run(IO, |t| t.position(IO)).await?;
+            let mut table_mm = table.run(IO, |t| t.position(IO)).await?;
             let since = came_after.unwrap_or(asked);
             let read_latency = Some(pace.now().saturating_sub(since));
             table.run(IO, |t| t.halt(IO)).await?;
+            let latched = if a.latch {
+                table.run(IO, |t| t.latched_z(IO)).await?
+            } else {
+                None
+            };
+            if let Some(z) = latched {
+                table_mm[2] = z;
+            }
             let after = panel.run(IO, |p| Ok(p.stats())).await?;
             packets_intact(&before, &after)?;
             Ok(Contact {
                 table_mm,
                 touch,
                 read_latency,
+                latched: latched.is_some(),
             })
         }
         Ended::TimedOut => {

@@ -359,4 +359,10 @@ impl<T: Table> Table for LimitedTable<T> {
         self.pass_top_z = None;
         self.inner.begin_pass();
     }
+    fn arm_touch_probe(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        self.inner.arm_touch_probe(timeout)
+    }
+    fn latched_z(&mut self, timeout: Duration) -> Result<Option<f64>, DeviceError> {
+        self.inner.latched_z(timeout)
+    }
 }

@@ -13,7 +13,10 @@
 //!   measurement's random draws come next, the session's time base, the motion history for the
 //!   journal) reaches the served world through a [`RemoteHook`] exactly as an in-process dry
 //!   run's hook reaches its world. A rig file naming the socket in `[devices] world`
-//!   ([`rehearsal_rig_text`]) makes `rigcal session` use it.
+//!   ([`rehearsal_rig_text`]) makes `rigcal session` use it. The panel's touch output reaches
+//!   the drives' touch-probe inputs in that shared world (`[devices.table] touch_probe`): a
+//!   latched height is the world's contact height, not a moment on the serving threads' clock,
+//!   so it is the in-process dry run's.
 //!
 //! # The served world across a killed session
 //! The server outlives the sessions that use it, and its world keeps moving after the last

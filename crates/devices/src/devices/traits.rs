@@ -446,6 +446,28 @@ pub trait Table: Send {
     fn latency(&self) -> Duration;
     /// Starts a new pass of ascending z (the safety wrapper forgets the previous z).
     fn begin_pass(&mut self) {}
+    /// Arms the z drive's touch-probe latch for the contact to come: the next positive edge of
+    /// its probe input (the panel controller's touch output, wired to it) stores the z
+    /// position in the drive, whatever the bus and panel latencies (CiA 402 touch probe 1,
+    /// first event; a position stored before is cleared). Only where the rig file says
+    /// `[devices.table] touch_probe = true`. Default: refused, the table has no latch.
+    fn arm_touch_probe(&mut self, _timeout: Duration) -> Result<(), DeviceError> {
+        Err(no_touch_probe())
+    }
+    /// The z position (mm) the z drive latched at the first positive edge of its probe input
+    /// since [`Table::arm_touch_probe`]; `None` while it has stored none. Default: refused, the
+    /// table has no latch.
+    fn latched_z(&mut self, _timeout: Duration) -> Result<Option<f64>, DeviceError> {
+        Err(no_touch_probe())
+    }
+}
+
+/// The error of a table without a touch-probe latch asked for one.
+fn no_touch_probe() -> DeviceError {
+    DeviceError::Config {
+        key: "table.touch_probe".into(),
+        reason: "this table (its driver, or a wrapper around it) has no touch-probe latch; set touch_probe = false".into(),
+    }
 }
 
 /// A touch as the panel reports it.
@@ -587,6 +609,12 @@ impl<T: Table + ?Sized> Table for Box<T> {
     }
     fn begin_pass(&mut self) {
         (**self).begin_pass()
+    }
+    fn arm_touch_probe(&mut self, timeout: Duration) -> Result<(), DeviceError> {
+        (**self).arm_touch_probe(timeout)
+    }
+    fn latched_z(&mut self, timeout: Duration) -> Result<Option<f64>, DeviceError> {
+        (**self).latched_z(timeout)
     }
 }
 

@@ -1080,6 +1080,120 @@ pub mod od {
     pub const PROFILE_DECELERATION: u16 = 0x6084;
     /// Value of 0x6060 selecting profile position mode.
     pub const MODE_PROFILE_POSITION: i8 = 1;
+    /// 0x60B8 touch probe function (UNSIGNED16): see [`super::TouchProbeFunction`].
+    pub const TOUCH_PROBE_FUNCTION: u16 = 0x60B8;
+    /// 0x60B9 touch probe status (UNSIGNED16): see [`super::TouchProbeStatus`].
+    pub const TOUCH_PROBE_STATUS: u16 = 0x60B9;
+    /// 0x60BA touch probe 1 positive-edge position value (INTEGER32, position units: counts).
+    pub const TOUCH_PROBE_1_POSITIVE: u16 = 0x60BA;
+    /// 0x60BB touch probe 1 negative-edge position value (INTEGER32, counts).
+    pub const TOUCH_PROBE_1_NEGATIVE: u16 = 0x60BB;
+}
+
+/// A CiA 402 touch probe function word (object 0x60B8): which probe latches the position on
+/// which edge of which input. Bit layout of probe 1 (probe 2 is the same in bits 8–15), per
+/// CiA 402 / IEC 61800-7-201 as drive manuals reproduce it (e.g. the MOONS' EtherCAT drive
+/// manual §3.10 "Touch probe" and Beckhoff's EP7211 "Touch Probe" page):
+///
+/// | bit | 0 | 1 |
+/// |---|---|---|
+/// | 0 | probe 1 switched off | probe 1 enabled |
+/// | 1 | trigger on the first event | continuous |
+/// | 2–3 | `00` the probe 1 input, `01` the encoder's zero impulse, `10` the source in 0x60D0 sub 1, `11` reserved | |
+/// | 4 | no sampling at the positive edge | sample at the positive edge (0x60BA) |
+/// | 5 | no sampling at the negative edge | sample at the negative edge (0x60BB) |
+/// | 6–7 | reserved | |
+///
+/// In first-event mode a stored edge is kept until the probe is re-armed: switching bit 0 off
+/// clears the status bits (0x60B9), and switching it on again samples the next edge.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TouchProbeFunction(pub u16);
+
+impl TouchProbeFunction {
+    /// Everything off: 0x0000.
+    pub const OFF: TouchProbeFunction = TouchProbeFunction(0x0000);
+    /// Bit 0: probe 1 enabled.
+    pub const BIT_PROBE1_ENABLE: u16 = 1 << 0;
+    /// Bit 1: probe 1 continuous (every edge) instead of the first event only.
+    pub const BIT_PROBE1_CONTINUOUS: u16 = 1 << 1;
+    /// Bits 2–3: probe 1's trigger source (`00` = its input).
+    pub const MASK_PROBE1_SOURCE: u16 = 0b11 << 2;
+    /// Bit 4: probe 1 samples at the positive edge.
+    pub const BIT_PROBE1_POSITIVE: u16 = 1 << 4;
+    /// Bit 5: probe 1 samples at the negative edge.
+    pub const BIT_PROBE1_NEGATIVE: u16 = 1 << 5;
+
+    /// Probe 1 enabled, first event only, triggered by its own input, sampling the positive
+    /// edge: 0x0011. What rigcal writes to latch a contact.
+    pub fn probe1_first_positive_edge() -> Self {
+        TouchProbeFunction(Self::BIT_PROBE1_ENABLE | Self::BIT_PROBE1_POSITIVE)
+    }
+    /// Bit 0.
+    pub fn probe1_enabled(self) -> bool {
+        self.0 & Self::BIT_PROBE1_ENABLE != 0
+    }
+    /// Bit 1.
+    pub fn probe1_continuous(self) -> bool {
+        self.0 & Self::BIT_PROBE1_CONTINUOUS != 0
+    }
+    /// Bits 2–3 as a number (0: the probe 1 input).
+    pub fn probe1_source(self) -> u16 {
+        (self.0 & Self::MASK_PROBE1_SOURCE) >> 2
+    }
+    /// Bit 4.
+    pub fn probe1_positive_edge(self) -> bool {
+        self.0 & Self::BIT_PROBE1_POSITIVE != 0
+    }
+    /// Bit 5.
+    pub fn probe1_negative_edge(self) -> bool {
+        self.0 & Self::BIT_PROBE1_NEGATIVE != 0
+    }
+}
+
+/// A CiA 402 touch probe status word (object 0x60B9), probe 1 in bits 0–7 (probe 2 the same
+/// in bits 8–15; same sources as [`TouchProbeFunction`]):
+///
+/// | bit | 0 | 1 |
+/// |---|---|---|
+/// | 0 | probe 1 switched off | probe 1 enabled |
+/// | 1 | no positive edge stored | a positive-edge position stored (in 0x60BA) |
+/// | 2 | no negative edge stored | a negative-edge position stored (in 0x60BB) |
+/// | 3–5 | reserved | |
+/// | 6–7 | manufacturer-specific | |
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct TouchProbeStatus(pub u16);
+
+impl TouchProbeStatus {
+    /// Bit 0: probe 1 enabled.
+    pub const BIT_PROBE1_ENABLED: u16 = 1 << 0;
+    /// Bit 1: probe 1's positive-edge position stored.
+    pub const BIT_PROBE1_POSITIVE_STORED: u16 = 1 << 1;
+    /// Bit 2: probe 1's negative-edge position stored.
+    pub const BIT_PROBE1_NEGATIVE_STORED: u16 = 1 << 2;
+
+    /// The status of probe 1 (nothing of probe 2), for emulators.
+    pub fn probe1(enabled: bool, positive_stored: bool) -> Self {
+        let mut w = 0;
+        if enabled {
+            w |= Self::BIT_PROBE1_ENABLED;
+        }
+        if positive_stored {
+            w |= Self::BIT_PROBE1_POSITIVE_STORED;
+        }
+        TouchProbeStatus(w)
+    }
+    /// Bit 0.
+    pub fn probe1_enabled(self) -> bool {
+        self.0 & Self::BIT_PROBE1_ENABLED != 0
+    }
+    /// Bit 1.
+    pub fn probe1_positive_stored(self) -> bool {
+        self.0 & Self::BIT_PROBE1_POSITIVE_STORED != 0
+    }
+    /// Bit 2.
+    pub fn probe1_negative_stored(self) -> bool {
+        self.0 & Self::BIT_PROBE1_NEGATIVE_STORED != 0
+    }
 }
 
 /// CiA 402 power drive system state.

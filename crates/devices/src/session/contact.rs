@@ -23,6 +23,14 @@
 //! panel's clear, and a panel packet dropped during the wait costs the contact
 //! ([`approach`](crate::devices::contact::approach)).
 //!
+//! Where the rig file says the z drive latches the contact height (`[devices.table]
+//! touch_probe = true`, conventions §8's CiA 402 touch probe), both approaches arm the latch
+//! and take the latched height: no latency biases it, so the latency rule above does not
+//! apply to it (the latency is still measured and recorded), and the locating touch places
+//! the back-off and the standoff from the true contact however late its packet came. A touch
+//! packet without a latched edge costs the contact (a pin already on the panel when the latch
+//! was armed, or a probe input not wired to the panel's touch output).
+//!
 //! The table keeps ascending z within a pass (the safety wrapper refuses anything lower than
 //! the pass's top minus the retract allowance): a new pass begins with each region, each
 //! registration pose, and wherever the procedure must go lower (counted as an extra pass).
@@ -66,9 +74,10 @@ impl FinalApproach {
         self.speed_mm_s * (self.panel_latency + read_latency).as_secs_f64()
     }
 
-    /// `Err` for a reading too late to be trusted (see the module docs).
+    /// `Err` for a reading too late to be trusted (see the module docs); a latched height is
+    /// never late.
     pub fn check(&self, c: &Contact) -> Result<(), DeviceError> {
-        let Some(latency) = c.read_latency else {
+        let Some(latency) = c.read_latency.filter(|_| !c.latched) else {
             return Ok(());
         };
         let error_mm = self.overshoot_mm(latency);
@@ -92,6 +101,8 @@ pub(crate) struct TableContact {
     travel_mm_s: f64,
     /// The final approach: the latency rule's speed and budget.
     last: FinalApproach,
+    /// The z drive latches the contact heights (`[devices.table] touch_probe`).
+    latch: bool,
     /// Top of the table's z travel (mm).
     travel_z: f64,
     /// How far below a pass's top a move may go (mm).
@@ -117,6 +128,22 @@ fn bad_touch(detail: String) -> DeviceError {
     }
 }
 
+/// `Err` (retryable) for a contact whose height should have been latched and was not: the
+/// panel reported a touch, but the z drive's probe stored no positive edge since it was armed.
+fn latched(c: &Contact, latch: bool, which: &str) -> Result<(), DeviceError> {
+    if !latch || c.latched {
+        return Ok(());
+    }
+    Err(DeviceError::Protocol {
+        device: DeviceName::Table,
+        request: "touch probe".into(),
+        detail: format!(
+            "the panel reported the {which} touch (table z {:.3} mm), but the z drive latched no positive edge of its probe input since it was armed: check that the panel controller's touch output is wired to the z drive's touch probe 1 input, which [devices.table] touch_probe = true needs",
+            c.table_mm[2]
+        ),
+    })
+}
+
 impl TableContact {
     /// `procedure` on `rig` with the final approach `last`.
     pub fn new(rig: &Rig, last: FinalApproach, procedure: ContactProcedure) -> Self {
@@ -125,6 +152,7 @@ impl TableContact {
             settings: ContactSettings::for_procedure(rig, procedure),
             travel_mm_s: cfg.table.profile_velocity_mm_s,
             last,
+            latch: cfg.table.touch_probe,
             travel_z: match &rig.instrument {
                 Instrument::TablePanel(tp) => tp.travel_mm.z,
                 _ => f64::MAX,
@@ -293,6 +321,7 @@ impl TableContact {
             z_to_mm: end_z,
             speed_mm_s: c.fast_mm_s,
             timeout: approach_timeout(end_z - start[2], c.fast_mm_s),
+            latch: self.latch,
         };
         let first = motion.contact(&locate).await;
         core.table_at = None;
@@ -305,6 +334,7 @@ impl TableContact {
                 first.table_mm[2]
             )));
         }
+        latched(&first, self.latch, "locating")?;
         let off = |t: &Contact| t.touch.u_mm.abs().max(t.touch.v_mm.abs());
         if off(&first) > c.max_offset_mm {
             return Err(bad_touch(format!(
@@ -345,6 +375,7 @@ impl TableContact {
             z_to_mm: top,
             speed_mm_s: self.last.speed_mm_s,
             timeout: approach_timeout(top - from, self.last.speed_mm_s),
+            latch: self.latch,
         };
         let fin = motion.contact(&last).await;
         self.raise_top(top);
@@ -361,6 +392,7 @@ impl TableContact {
                 fin.table_mm[2], c.standoff_mm
             )));
         }
+        latched(&fin, self.latch, "final")?;
         if du.max(dv) > c.max_disagreement_mm || fin.table_mm[2] < from - c.z_tolerance_mm {
             return Err(bad_touch(format!(
                 "final touch at ({:.2}, {:.2}) mm, z {:.3} mm disagrees with the locating touch at ({:.2}, {:.2}) mm, z {:.3} mm",
@@ -495,6 +527,7 @@ mod tests {
                 v_mm: 0.0,
             },
             read_latency,
+            latched: false,
         }
     }
 
@@ -523,5 +556,25 @@ mod tests {
         assert!(last
             .check(&contact(Some(Duration::from_millis(9))))
             .is_err());
+        // A height the z drive latched at the touch: no latency biases it, none refuses it.
+        let latched = Contact {
+            latched: true,
+            ..contact(Some(Duration::from_millis(150)))
+        };
+        assert!(last.check(&latched).is_ok());
+    }
+
+    #[test]
+    fn a_touch_without_a_latched_edge_costs_the_contact_only_where_the_rig_latches() {
+        let read = contact(Some(Duration::from_millis(2)));
+        assert!(latched(&read, false, "final").is_ok());
+        let e = latched(&read, true, "final").unwrap_err();
+        assert!(e.is_retryable(), "{e}");
+        assert!(e.to_string().contains("probe input"), "{e}");
+        let ok = Contact {
+            latched: true,
+            ..read
+        };
+        assert!(latched(&ok, true, "final").is_ok());
     }
 }

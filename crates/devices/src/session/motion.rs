@@ -474,6 +474,7 @@ mod tests {
                 z_to_mm: 20.0,
                 speed_mm_s: 5.0,
                 timeout: Duration::from_secs(5),
+                latch: false,
             };
             let e = motion.contact(&a).await.unwrap_err();
             let took = motion.pace.now() - t0;

@@ -12,14 +12,32 @@
 //! orders 5–12 and its order-4 gear error are nearly collinear when the joint visits few
 //! angles, as on the UR10's grid), so its gain would be the shapes' instability, not its own.
 //! An effect is claimed when
-//! - its mean gain over the blocks exceeds [`SIGNIFICANCE_Z`] standard errors (σ over the
-//!   blocks ÷ √K),
+//! - its mean gain over the blocks exceeds [`SIGNIFICANCE_Z`] standard errors, strictly (σ over
+//!   the blocks ÷ √K: on white noise the blocks' gains of a term that is not there are, if
+//!   anything, negatively correlated, so this does not understate the spread of their mean —
+//!   checked by simulation in the tests below),
 //! - the part of the held-out error it explains, √(MSE without − MSE with), reaches
 //!   [`MIN_GAIN_SHARE`] of the noise floor (below it no user can see it in a held-out figure;
 //!   the floor is taken no lower than [`MIN_FLOOR_MM`]),
 //! - its fitted joint error is one a joint can have ([`joint_error_limit_deg`]),
-//! - and, when held-out recordings or sessions are given, it raises the RMS of none of them
-//!   (fitted on the whole recording; a session's frame refitted).
+//! - and, when held-out recordings or sessions are given, it raises none of them by more than
+//!   the rise's own uncertainty: fitted on the whole recording (a session's frame refitted),
+//!   each held-out recording is cut into contiguous blocks like the training recording, and a
+//!   rise is evidence against the effect only when the mean of its blocks' RMS differences is
+//!   below −[`RISE_Z`] standard errors of that mean ([`gain_on`]). A rise within its own noise
+//!   (0.056 mm of 14 mm on one TIAGo session, 0.0002 mm on a UR10 series) is no evidence; a
+//!   rise of 14 % is.
+//! - and, when no held-out recording is given, it does not raise the held-out figure the report
+//!   prints in their place, the recording's own split (time blocks 2 and 6 of 8, fitted on the
+//!   rest, [`super::heldout`]), at all. That split is a quarter of the recording the blocks
+//!   already found the effect significant on, so an effect that earns its place gains there
+//!   too (600-row rough recordings: 200 of 200 library effects at 1–5× the floor); one at the
+//!   edge of significance on the blocks may not (993 rows of the UR10's series A: joint 3's
+//!   compliance at +0.0080 ± 0.0040 mm raised it 0.3930 → 0.3959 mm), and the report must not
+//!   print a claim that makes its own held-out figure worse. Given held-out recordings and
+//!   sessions are judged with the tolerance above instead: they are other days, where a rise
+//!   within its noise is no evidence (an effect that restarts with the arm's warm-up on each
+//!   session rose on one by 0.0015 ± 0.0083 mm).
 //!
 //! The effect failing worst (smallest gain ÷ σ) is set aside and the others judged again
 //! without it, until every effect left passes (backward elimination: two effects that share a
@@ -52,6 +70,11 @@ pub const MIN_FOLDS: usize = 3;
 const MEASUREMENTS_PER_FOLD: usize = 10;
 /// An effect's mean held-out gain must exceed this many standard errors over the blocks.
 pub const SIGNIFICANCE_Z: f64 = 2.0;
+/// A held-out recording or session refuses an effect when the effect's mean gain over the
+/// recording's blocks is below −this many standard errors: the same evidence, one-sided, that a
+/// claim needs, here for a rise. Checked on the simulated sessions with moved frames of
+/// `tests/real_shaped.rs` (seeds named there), not on the UR10 or the TIAGo.
+pub const RISE_Z: f64 = 2.0;
 /// The held-out error an effect explains, √(MSE without − MSE with), must reach this share of
 /// the noise floor. The library's rate table names effects whose visible size is 0.3× the floor
 /// and more; the over-claims of issue 35 were 0.1–0.2×, with held-out RMS unchanged in the
@@ -102,15 +125,26 @@ pub struct HeldoutGain {
     pub explained_mm: f64,
     /// `explained_mm` ÷ the noise floor.
     pub explained_over_floor: f64,
-    /// On the given held-out recordings, fitted on the whole recording: RMS without − RMS with
-    /// (mm), the smallest over the recordings; None without held-out recordings.
+    /// On the given held-out recordings, fitted on the whole recording: the mean over each
+    /// recording's blocks of RMS without − RMS with (mm), of the recording where it is least
+    /// in standard errors; None without held-out recordings.
     #[serde(default)]
     pub recordings_gain_mm: Option<f64>,
-    /// On the given held-out sessions, each with its measurement frame refitted, fitted on the
-    /// whole recording: RMS without − RMS with (mm), the smallest over the sessions; None
+    /// The standard error of `recordings_gain_mm` (mm).
+    #[serde(default)]
+    pub recordings_gain_sigma_mm: Option<f64>,
+    /// The same on the given held-out sessions, each with its measurement frame refitted; None
     /// without held-out sessions.
     #[serde(default)]
     pub sessions_gain_mm: Option<f64>,
+    /// The standard error of `sessions_gain_mm` (mm).
+    #[serde(default)]
+    pub sessions_gain_sigma_mm: Option<f64>,
+    /// On the recording's own held-out split, the figure the report prints when no held-out
+    /// recording is given, fitted on the rest: RMS without − RMS with (mm); None with held-out
+    /// recordings or when the recording is too small for the split.
+    #[serde(default)]
+    pub printed_gain_mm: Option<f64>,
     /// For an effect on a revolute joint: the largest joint error it predicts at the
     /// measurements, fitted on the whole recording (degrees).
     #[serde(default)]
@@ -142,15 +176,23 @@ impl HeldoutGain {
                 self.explained_mm, self.explained_over_floor
             ));
         }
-        if let Some(g) = self.recordings_gain_mm.filter(|g| *g <= 0.0) {
+        if let Some((g, s)) =
+            significant_rise(self.recordings_gain_mm, self.recordings_gain_sigma_mm)
+        {
             return Some(format!(
-                "it raises the RMS of a held-out recording by {:.4} mm",
+                "it raises the RMS of a held-out recording by {:.4} ± {s:.4} mm (more than {RISE_Z} σ)",
                 -g
             ));
         }
-        if let Some(g) = self.sessions_gain_mm.filter(|g| *g <= 0.0) {
+        if let Some((g, s)) = significant_rise(self.sessions_gain_mm, self.sessions_gain_sigma_mm) {
             return Some(format!(
-                "it raises the RMS of a held-out session (frame refitted) by {:.4} mm",
+                "it raises the RMS of a held-out session (frame refitted) by {:.4} ± {s:.4} mm (more than {RISE_Z} σ)",
+                -g
+            ));
+        }
+        if let Some(g) = self.printed_gain_mm.filter(|g| *g < 0.0) {
+            return Some(format!(
+                "it raises the recording's own held-out split (time blocks 2 and 6 of 8, the held-out figure the report prints) by {:.4} mm",
                 -g
             ));
         }
@@ -170,17 +212,30 @@ impl HeldoutGain {
             self.explained_over_floor
         );
         if let Some(g) = self.recordings_gain_mm {
+            let sg = self.recordings_gain_sigma_mm.unwrap_or(f64::NAN);
             s.push_str(&format!(
-                "; on the held-out recordings {g:+.4} mm (the least)"
+                "; on the held-out recordings {g:+.4} ± {sg:.4} mm (the least)"
             ));
         }
         if let Some(g) = self.sessions_gain_mm {
+            let sg = self.sessions_gain_sigma_mm.unwrap_or(f64::NAN);
             s.push_str(&format!(
-                "; on the held-out sessions {g:+.4} mm (the least)"
+                "; on the held-out sessions {g:+.4} ± {sg:.4} mm (the least)"
             ));
+        }
+        if let Some(g) = self.printed_gain_mm {
+            s.push_str(&format!("; on the printed held-out split {g:+.4} mm"));
         }
         s
     }
+}
+
+/// A held-out gain `g` ± `sigma` (mm) that is a rise beyond [`RISE_Z`] standard errors: (g, σ).
+/// A gain with no σ (a single measurement) is judged by its sign alone.
+fn significant_rise(g: Option<f64>, sigma: Option<f64>) -> Option<(f64, f64)> {
+    let g = g?;
+    let s = sigma.filter(|s| s.is_finite()).unwrap_or(0.0);
+    (g < 0.0 && -g > RISE_Z * s).then_some((g, s))
 }
 
 /// What the judgement found, per chosen effect (indices into `Selection::chosen`).
@@ -389,7 +444,10 @@ fn gain_of(sums: &[(f64, f64, usize)], floor: f64) -> HeldoutGain {
         explained_mm: explained,
         explained_over_floor: explained / floor.max(1e-300),
         recordings_gain_mm: None,
+        recordings_gain_sigma_mm: None,
         sessions_gain_mm: None,
+        sessions_gain_sigma_mm: None,
+        printed_gain_mm: None,
         peak_joint_error_deg: None,
         joint_error_limit_deg: None,
     }
@@ -503,6 +561,11 @@ pub fn judge(
             )
         })
         .collect();
+    let own_split = if heldout.is_empty() {
+        super::heldout::own_split(m).map(|rows| split_system(&sys, &rows))
+    } else {
+        None
+    };
     let mut active: Vec<usize> = (1..=n_eff).collect();
     let mut out = Judgement::default();
     loop {
@@ -519,8 +582,10 @@ pub fn judge(
         let mut gains: Vec<HeldoutGain> = sums.per_term.iter().map(|s| gain_of(s, floor)).collect();
         if let Some(fit) = fit_with_drops(&sys, &sys.total.0, &sys.total.1, &cols, &active) {
             for ((g, d), &t) in gains.iter_mut().zip(&fit.drop_delta).zip(&active) {
-                g.recordings_gain_mm = gain_on(&held, &fit.beta, d);
-                g.sessions_gain_mm = gain_on(&on_sessions, &fit.beta, d);
+                (g.recordings_gain_mm, g.recordings_gain_sigma_mm) =
+                    gain_on(&held, &fit.beta, d).unzip();
+                (g.sessions_gain_mm, g.sessions_gain_sigma_mm) =
+                    gain_on(&on_sessions, &fit.beta, d).unzip();
                 let c = &sel.chosen[t - 1];
                 let coef = DVector::from_fn(c.x.ncols(), |i, _| {
                     let col = sys.terms[t].start + i;
@@ -533,11 +598,21 @@ pub fn judge(
                     .map(|_| joint_error_limit_deg(lib[c.cand].kind()));
             }
         }
+        if let Some(split) = &own_split {
+            if let Some(fit) = fit_with_drops(&sys, &split.normal, &split.rhs, &cols, &active) {
+                let test = [(split.a.clone(), split.y.clone())];
+                for (g, d) in gains.iter_mut().zip(&fit.drop_delta) {
+                    g.printed_gain_mm = pooled_gain(&test, &fit.beta, d);
+                }
+            }
+        }
         let worst = gains
             .iter()
             .enumerate()
             .filter_map(|(i, g)| g.shortfall().map(|why| (i, g, why)))
-            .min_by(|a, b| z_of(a.1).total_cmp(&z_of(b.1)));
+            .min_by(|a, b| z_of(a.1).total_cmp(&z_of(b.1)))
+            .map(|(i, g, why)| (i, g.clone(), why))
+            .or_else(|| together_rise(&sys, &cols, (&held, &on_sessions), &gains));
         match worst {
             None => {
                 out.kept = active.iter().map(|t| t - 1).zip(gains).collect();
@@ -545,7 +620,7 @@ pub fn judge(
             }
             Some((i, g, why)) => {
                 tracing::debug!(effect = %lib[sel.chosen[active[i] - 1].cand].label(), %why, "set aside: held-out gain");
-                out.weak.push((active[i] - 1, g.clone(), why));
+                out.weak.push((active[i] - 1, g, why));
                 active.remove(i);
                 if active.is_empty() {
                     return out;
@@ -587,22 +662,156 @@ fn peak_joint_error_deg(
     Some(peak.to_degrees())
 }
 
-/// RMS without − RMS with a term on each of the designs `held` (mm), the whole-recording fit
-/// `beta` and the term's coefficient change `delta` when removed: the smallest, so an effect
-/// must help every held-out recording or session, not their pool (an effect that helps one
-/// series and hurts another does not carry); None without designs.
+/// A term's gain on each of the designs `held` (the whole-recording fit `beta` and the term's
+/// coefficient change `delta` when removed): the mean over the design's contiguous blocks
+/// ([`blocks`]; one measurement per block when it has fewer than 6) of RMS without − RMS with
+/// (mm), with its standard error (σ over the blocks ÷ √blocks: the fit is fixed, so the blocks
+/// are independent predictions). Of the designs, the one whose gain is least in standard errors,
+/// so an effect is judged on every held-out recording or session, not their pool (an effect that
+/// helps one series and hurts another does not carry); None without designs.
 fn gain_on(
     held: &[(DMatrix<f64>, DVector<f64>)],
     beta: &DVector<f64>,
     delta: &DVector<f64>,
-) -> Option<f64> {
+) -> Option<(f64, f64)> {
     held.iter()
         .map(|(a, y)| {
-            let e = y - a * beta;
-            let m = (y.len() / 3).max(1) as f64;
-            ((&e + a * delta).norm_squared() / m).sqrt() - (e.norm_squared() / m).sqrt()
+            let with = y - a * beta;
+            let without = &with + a * delta;
+            blocked_gain(&with, &without)
         })
-        .min_by(f64::total_cmp)
+        .min_by(|a, b| rise_order(*a).total_cmp(&rise_order(*b)))
+}
+
+/// A held-out recording or session as the judgement reads it: its weighted, column-scaled
+/// design and its weighted residual (mm).
+type HeldDesign = (DMatrix<f64>, DVector<f64>);
+
+/// How an effect's gain on the held-out recordings or on the sessions is read from its
+/// [`HeldoutGain`]: (gain, σ) in mm.
+type OwnGain = fn(&HeldoutGain) -> (f64, f64);
+
+/// When every effect passes alone: whether the effects together raise a given held-out
+/// recording or session beyond [`RISE_Z`] standard errors (rises within each effect's noise
+/// can add up: on the TIAGo Pro, four compliances each within 2 σ of no change on session 0805
+/// raised it together by about 1 mm of 14). Then the effect whose own held-out gain is least in
+/// standard errors is set aside: its index in `gains`, its gain and why.
+fn together_rise(
+    sys: &FoldSystem,
+    cols: &[usize],
+    (held, sessions): (&[HeldDesign], &[HeldDesign]),
+    gains: &[HeldoutGain],
+) -> Option<(usize, HeldoutGain, String)> {
+    if gains.len() < 2 || (held.is_empty() && sessions.is_empty()) {
+        return None;
+    }
+    let fit = fit_with_drops(sys, &sys.total.0, &sys.total.1, cols, &[])?;
+    let base = fit_with_drops(sys, &sys.total.0, &sys.total.1, &sys.columns(&[]), &[])?;
+    let delta = &fit.beta - &base.beta;
+    let rise = |designs: &[(DMatrix<f64>, DVector<f64>)], what: &str| {
+        let (g, sigma) = gain_on(designs, &fit.beta, &delta)?;
+        significant_rise(Some(g), Some(sigma)).map(|(g, s)| {
+            format!("together the named effects raise the RMS of a held-out {what} by {:.4} ± {s:.4} mm (more than {RISE_Z} σ), and this one's own gain there is the least", -g)
+        })
+    };
+    let (why, own): (String, OwnGain) = if let Some(why) = rise(held, "recording") {
+        (why, |g| {
+            (
+                g.recordings_gain_mm.unwrap_or(0.0),
+                g.recordings_gain_sigma_mm.unwrap_or(f64::NAN),
+            )
+        })
+    } else {
+        (rise(sessions, "session (frames refitted)")?, |g| {
+            (
+                g.sessions_gain_mm.unwrap_or(0.0),
+                g.sessions_gain_sigma_mm.unwrap_or(f64::NAN),
+            )
+        })
+    };
+    let (i, g) = gains
+        .iter()
+        .enumerate()
+        .min_by(|a, b| rise_order(own(a.1)).total_cmp(&rise_order(own(b.1))))?;
+    Some((i, g.clone(), why))
+}
+
+/// The recording's own held-out split (the rows of [`super::heldout::own_split`]): its design
+/// rows and residual, and the normal equations of the other rows.
+struct SplitSystem {
+    a: DMatrix<f64>,
+    y: DVector<f64>,
+    normal: DMatrix<f64>,
+    rhs: DVector<f64>,
+}
+
+fn split_system(sys: &FoldSystem, measurements: &[usize]) -> SplitSystem {
+    let rows: Vec<usize> = measurements
+        .iter()
+        .flat_map(|&i| 3 * i..3 * i + 3)
+        .collect();
+    let a = sys.a.select_rows(&rows);
+    let y = sys.y.select_rows(&rows);
+    SplitSystem {
+        normal: &sys.total.0 - a.tr_mul(&a),
+        rhs: &sys.total.1 - a.tr_mul(&y),
+        a,
+        y,
+    }
+}
+
+/// RMS without − RMS with a term over all the designs `held` pooled (mm); None without
+/// designs.
+fn pooled_gain(
+    held: &[(DMatrix<f64>, DVector<f64>)],
+    beta: &DVector<f64>,
+    delta: &DVector<f64>,
+) -> Option<f64> {
+    if held.is_empty() {
+        return None;
+    }
+    let (mut with, mut without, mut m) = (0.0, 0.0, 0usize);
+    for (a, y) in held {
+        let e = y - a * beta;
+        without += (&e + a * delta).norm_squared();
+        with += e.norm_squared();
+        m += y.len() / 3;
+    }
+    let m = m.max(1) as f64;
+    Some((without / m).sqrt() - (with / m).sqrt())
+}
+
+/// Mean and standard error (mm) over contiguous blocks of measurements of RMS without − RMS
+/// with, from the stacked residuals with and without a term (3 rows per measurement).
+fn blocked_gain(with: &DVector<f64>, without: &DVector<f64>) -> (f64, f64) {
+    let m = with.len() / 3;
+    let mut cut = blocks(m);
+    if cut.is_empty() {
+        cut = (0..m).map(|i| i..i + 1).collect();
+    }
+    let rms = |r: &DVector<f64>, b: &Range<usize>| {
+        (r.rows(3 * b.start, 3 * b.len()).norm_squared() / b.len().max(1) as f64).sqrt()
+    };
+    let per: Vec<f64> = cut.iter().map(|b| rms(without, b) - rms(with, b)).collect();
+    let k = per.len().max(1) as f64;
+    let mean = per.iter().sum::<f64>() / k;
+    if per.len() < 2 {
+        return (mean, f64::NAN);
+    }
+    let var = per.iter().map(|g| (g - mean).powi(2)).sum::<f64>() / (k - 1.0);
+    (mean, (var / k).sqrt())
+}
+
+/// Gain ÷ σ of a held-out gain, the order in which held-out recordings are worst for an effect
+/// (a rise with no σ first).
+fn rise_order((g, s): (f64, f64)) -> f64 {
+    if s.is_finite() && s > 0.0 {
+        g / s
+    } else if g < 0.0 {
+        f64::NEG_INFINITY
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Gain ÷ its σ, the order in which failing effects are set aside (∞ for an exact gain).
@@ -626,7 +835,10 @@ fn empty_gain() -> HeldoutGain {
         explained_mm: 0.0,
         explained_over_floor: 0.0,
         recordings_gain_mm: None,
+        recordings_gain_sigma_mm: None,
         sessions_gain_mm: None,
+        sessions_gain_sigma_mm: None,
+        printed_gain_mm: None,
         peak_joint_error_deg: None,
         joint_error_limit_deg: None,
     }
@@ -762,7 +974,10 @@ mod tests {
             explained_mm: over,
             explained_over_floor: over,
             recordings_gain_mm: None,
+            recordings_gain_sigma_mm: None,
             sessions_gain_mm: None,
+            sessions_gain_sigma_mm: None,
+            printed_gain_mm: None,
             peak_joint_error_deg: None,
             joint_error_limit_deg: None,
         };
@@ -776,5 +991,97 @@ mod tests {
         implausible.peak_joint_error_deg = Some(5.3);
         implausible.joint_error_limit_deg = Some(MAX_JOINT_ERROR_DEG);
         assert!(implausible.shortfall().is_some_and(|w| w.contains("5.30°")));
+        // A held-out rise within its own noise is no evidence; beyond RISE_Z σ it refuses.
+        let mut noisy = g(0.01, 0.001, 0.5);
+        noisy.sessions_gain_mm = Some(-0.056);
+        noisy.sessions_gain_sigma_mm = Some(0.05);
+        assert!(noisy.shortfall().is_none(), "{noisy:?}");
+        noisy.sessions_gain_sigma_mm = Some(0.02);
+        assert!(noisy
+            .shortfall()
+            .is_some_and(|w| w.contains("held-out session")));
+    }
+
+    /// The blocked gain of a held-out recording: its mean is the blocks' mean and its σ the
+    /// blocks' spread ÷ √K, computed here by hand on a two-block-valued residual.
+    #[test]
+    fn a_held_out_gain_is_the_mean_of_its_blocks_with_their_standard_error() {
+        let m = 30; // 3 blocks of 10
+        let with = DVector::from_element(3 * m, 1.0);
+        // Block b's RMS without is √3·(1 + b/10): gains √3·{0, 0.1, 0.2}.
+        let without = DVector::from_fn(3 * m, |r, _| 1.0 + (r / 30) as f64 / 10.0);
+        let (mean, sigma) = blocked_gain(&with, &without);
+        let s3 = 3f64.sqrt();
+        assert!((mean - s3 * 0.1).abs() < 1e-12, "{mean}");
+        // Sample σ of {0, 0.1, 0.2}·√3 is 0.1·√3; ÷ √3 blocks.
+        assert!((sigma - 0.1).abs() < 1e-12, "{sigma}");
+        // Fewer than 6 measurements: one per block.
+        let (_, s) = blocked_gain(&with.rows(0, 6).into(), &without.rows(0, 6).into());
+        assert!(s.abs() < 1e-12);
+    }
+
+    /// Two terms the training recording shows and a held-out session does not: together they
+    /// raise it beyond 2 σ, and the one whose own gain there is least is set aside; on a
+    /// session that shows them, nothing is.
+    #[test]
+    fn effects_that_together_raise_a_held_out_session_lose_the_weakest() {
+        let (n, m) = (200, 100);
+        let col = |seed: usize, rows: usize| {
+            DMatrix::from_fn(3 * rows, 1, |r, _| ((r * 7 + seed) as f64 * 0.173).sin())
+        };
+        let base = |rows: usize| {
+            DMatrix::from_fn(3 * rows, 2, |r, c| {
+                if c == 0 {
+                    1.0
+                } else {
+                    (r / 3) as f64 / rows as f64
+                }
+            })
+        };
+        let (x1, x2) = (col(1, n), col(2, n));
+        let y = DVector::from_fn(3 * n, |r, _| x1[r] + x2[r] + 0.05 * pseudo_noise(r));
+        let sys = FoldSystem::new(blocks(n), &[base(n), x1, x2], y);
+        let cols = sys.columns(&[1, 2]);
+        let a_h = super::super::linalg::hcat(&[base(m), col(11, m), col(12, m)], 3 * m);
+        let scaled = DMatrix::from_fn(a_h.nrows(), a_h.ncols(), |r, c| a_h[(r, c)] / sys.scale[c]);
+        let noise = DVector::from_fn(3 * m, |r, _| 0.05 * pseudo_noise(r + 9_999));
+        let mut gains = vec![empty_gain(), empty_gain()];
+        gains[0].sessions_gain_mm = Some(-0.2);
+        gains[0].sessions_gain_sigma_mm = Some(0.15);
+        gains[1].sessions_gain_mm = Some(-0.1);
+        gains[1].sessions_gain_sigma_mm = Some(0.15);
+        let absent = [(scaled.clone(), noise.clone())];
+        let (i, _, why) =
+            together_rise(&sys, &cols, (&[], &absent), &gains).expect("a rise together");
+        assert_eq!(i, 0, "{why}");
+        assert!(why.contains("together"), "{why}");
+        let shown = noise + a_h.columns(2, 2) * DVector::from_element(2, 1.0);
+        let present = [(scaled, shown)];
+        assert!(together_rise(&sys, &cols, (&[], &present), &gains).is_none());
+    }
+
+    /// The standard error σ ÷ √K treats the blocks' gains as independent, though their
+    /// training sets overlap. Against simulation: over many pure-noise recordings the spread of
+    /// the mean block gain of a term that is not there is not larger than the standard error
+    /// says (the blocks' gains are negatively correlated here: measured, the spread² is about
+    /// half the mean σ²), so 2 σ is not optimistic on white noise.
+    #[test]
+    fn the_block_standard_error_does_not_understate_the_spread_of_null_gains() {
+        let n = 100;
+        let reps = 400;
+        let mut means = Vec::with_capacity(reps);
+        let mut naive = 0.0;
+        for rep in 0..reps {
+            let x = DVector::from_fn(3 * n, |r, _| pseudo_noise(r * 7 + 13 + rep * 100_003));
+            let y = DVector::from_fn(3 * n, |r, _| pseudo_noise(r + rep * 1_000_003 + 5));
+            let g = gain_for(&x, &y, n);
+            means.push(g.gain_mm);
+            naive += g.gain_sigma_mm.powi(2);
+        }
+        let mu = means.iter().sum::<f64>() / reps as f64;
+        let spread = means.iter().map(|m| (m - mu).powi(2)).sum::<f64>() / (reps - 1) as f64;
+        let naive = naive / reps as f64;
+        eprintln!("spread² {spread:.3e}, mean σ² {naive:.3e}");
+        assert!(spread < naive, "spread² {spread:.3e}, mean σ² {naive:.3e}");
     }
 }

@@ -123,6 +123,17 @@ fn other_recordings(
     }
 }
 
+/// The measurements the recording's own held-out split holds out (time blocks 2 and 6 of 8),
+/// None when it is too small for one. The held-out judgement ([`super::crossval`]) checks a
+/// claim against the same split.
+pub(crate) fn own_split(n: usize) -> Option<Vec<usize>> {
+    (n >= MIN_FOR_SPLIT).then(|| (0..n).filter(|&i| in_own_split(i, n)).collect())
+}
+
+fn in_own_split(i: usize, n: usize) -> bool {
+    matches!(i * 8 / n, 1 | 5)
+}
+
 /// Time blocks 2 and 6 of 8 held out, fitted on the rest: whole blocks, so a slow drift cannot
 /// be interpolated from neighbouring rows.
 fn time_block_split(std: &Standard, a_all: &DMatrix<f64>) -> Heldout {
@@ -136,8 +147,7 @@ fn time_block_split(std: &Standard, a_all: &DMatrix<f64>) -> Heldout {
             after_mean_max: None,
         };
     }
-    let block = |i: usize| i * 8 / n;
-    let (test, train): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| matches!(block(i), 1 | 5));
+    let (test, train): (Vec<usize>, Vec<usize>) = (0..n).partition(|&i| in_own_split(i, n));
     let rt = rows_of_vector(&std.residual, &train);
     let rh = rows_of_vector(&std.residual, &test);
     let gt = rows_of(&std.jacobian, &train);

@@ -3,16 +3,36 @@
 //! partial F-test of adding it, column-scaled least squares, row selection and weighting.
 
 use super::MIN_VISIBLE;
-use crate::identification::dense::bounded_svd;
+use crate::identification::dense::{bounded_svd, gram, householder_r};
 use nalgebra::{DMatrix, DVector};
 use rigcal_core::stats::{f_sf, ln_f_sf};
 
 /// An orthonormal basis of the column space of `m` (columns scaled to unit norm first; singular
 /// values below `tol` dropped).
+///
+/// How: the singular values and right vectors come from the SVD of the small triangular factor
+/// R of the Householder QR of the scaled matrix S (S and R have the same singular values and
+/// right vectors), so the rank decision is the one an SVD of S makes, to rounding; the basis is
+/// S·V·Σ⁻¹ over the kept directions, orthonormalised once more through the Cholesky factor of
+/// its Gram matrix (a full-rank, nearly orthonormal set: the span does not change). On the tall
+/// matrices of the diagnosis (thousands of rows, tens of columns) this costs a few passes over
+/// S, where the SVD of S itself rotates its left vectors over all rows at every sweep.
 pub fn orth_basis(m: &DMatrix<f64>, tol: f64) -> DMatrix<f64> {
     if m.ncols() == 0 {
         return DMatrix::zeros(m.nrows(), 0);
     }
+    let s = unit_columns(m);
+    if s.nrows() < 2 * s.ncols() {
+        return orth_basis_by_svd(s, tol);
+    }
+    match orth_basis_by_qr(&s, tol) {
+        Some(q) => q,
+        None => orth_basis_by_svd(s, tol),
+    }
+}
+
+/// `m` with each non-zero column scaled to unit norm.
+fn unit_columns(m: &DMatrix<f64>) -> DMatrix<f64> {
     let mut s = m.clone();
     for mut c in s.column_iter_mut() {
         let n = c.norm();
@@ -20,16 +40,53 @@ pub fn orth_basis(m: &DMatrix<f64>, tol: f64) -> DMatrix<f64> {
             c /= n;
         }
     }
+    s
+}
+
+/// [`orth_basis`] of the column-scaled `s` by the SVD of its Householder factor; None when a
+/// value is not finite or the kept directions cannot be orthonormalised (then the caller takes
+/// the SVD of `s` itself).
+fn orth_basis_by_qr(s: &DMatrix<f64>, tol: f64) -> Option<DMatrix<f64>> {
+    if s.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let r = householder_r(s.clone());
+    let svd = bounded_svd(r, false, true)?;
+    let vt = svd.v_t?;
+    let keep: Vec<usize> = (0..svd.singular_values.len())
+        .filter(|&k| svd.singular_values[k] > tol)
+        .collect();
+    if keep.is_empty() {
+        return Some(DMatrix::zeros(s.nrows(), 0));
+    }
+    // S·vₖ = σₖ·uₖ: the left vectors of the kept directions.
+    let v_scaled = DMatrix::from_fn(s.ncols(), keep.len(), |i, c| {
+        vt[(keep[c], i)] / svd.singular_values[keep[c]]
+    });
+    let u = s * v_scaled;
+    // Rounding in S·v is amplified by 1/σ for the weakest kept directions: one Cholesky pass
+    // (U ← U·L⁻ᵀ with UᵀU = L·Lᵀ) restores orthonormality without changing the span.
+    let chol = nalgebra::Cholesky::new(gram(&u))?;
+    let l_inv = chol
+        .l()
+        .solve_lower_triangular(&DMatrix::identity(keep.len(), keep.len()))?;
+    let q = u * l_inv.transpose();
+    q.iter().all(|v| v.is_finite()).then_some(q)
+}
+
+/// [`orth_basis`] of the column-scaled `s` by its own SVD.
+fn orth_basis_by_svd(s: DMatrix<f64>, tol: f64) -> DMatrix<f64> {
+    let nrows = s.nrows();
     let Some(svd) = bounded_svd(s, true, false) else {
-        return DMatrix::zeros(m.nrows(), 0);
+        return DMatrix::zeros(nrows, 0);
     };
     let Some(u) = svd.u else {
-        return DMatrix::zeros(m.nrows(), 0);
+        return DMatrix::zeros(nrows, 0);
     };
     let keep: Vec<usize> = (0..svd.singular_values.len())
         .filter(|&k| svd.singular_values[k] > tol)
         .collect();
-    DMatrix::from_fn(m.nrows(), keep.len(), |r, c| u[(r, keep[c])])
+    DMatrix::from_fn(nrows, keep.len(), |r, c| u[(r, keep[c])])
 }
 
 /// `x` with the column space of the orthonormal `q` removed (twice, for accuracy).
@@ -45,12 +102,20 @@ pub fn project_out(q: &DMatrix<f64>, x: &DMatrix<f64>) -> DMatrix<f64> {
 /// fraction ‖(I − QQᵀ)X‖ / ‖X‖ (Frobenius, columns scaled to unit norm), or None when the
 /// candidate is numerically absorbed or empty.
 pub fn visible_basis(q: &DMatrix<f64>, x: &DMatrix<f64>) -> Option<(DMatrix<f64>, f64)> {
+    let norms: Vec<f64> = x.column_iter().map(|c| c.norm()).collect();
+    visible_basis_of_projection(&norms, &project_out(q, x))
+}
+
+/// [`visible_basis`] from a candidate's column norms `norms` and its part `xp` past the model
+/// (already projected out, e.g. by [`Projection`]).
+pub fn visible_basis_of_projection(
+    norms: &[f64],
+    xp: &DMatrix<f64>,
+) -> Option<(DMatrix<f64>, f64)> {
     let mut cols = Vec::new();
     let mut vis2 = 0.0;
-    let xp = project_out(q, x);
-    for c in 0..x.ncols() {
-        let n = x.column(c).norm();
-        if n <= 1e-12 * (x.nrows() as f64).sqrt() {
+    for (c, &n) in norms.iter().enumerate() {
+        if n <= 1e-12 * (xp.nrows() as f64).sqrt() {
             continue;
         }
         let v = xp.column(c).norm() / n;
@@ -62,10 +127,106 @@ pub fn visible_basis(q: &DMatrix<f64>, x: &DMatrix<f64>) -> Option<(DMatrix<f64>
     if cols.is_empty() {
         return None;
     }
-    let visible = (vis2 / x.ncols() as f64).sqrt();
+    let visible = (vis2 / norms.len() as f64).sqrt();
     let m = DMatrix::from_columns(&cols);
-    let u = orth_basis(&m, 0.1 * MIN_VISIBLE);
+    let u = orth_basis(&m, VISIBLE_RANK_TOL);
     (u.ncols() > 0).then_some((u, visible))
+}
+
+/// The rank and ΔSS of a candidate's visible part, as [`visible_basis_of_projection`] and
+/// [`partial_f_ln`] would find them, without forming its basis: from the eigen-decomposition of
+/// the small Gram matrix SᵀS of the visible columns S (scaled to unit norm), the rank counts the
+/// singular values √λ above [`VISIBLE_RANK_TOL`], and ΔSS = Σ (vᵢᵀSᵀr)²/λᵢ over them. Outer None:
+/// nothing visible (as `visible_basis_of_projection`). Inner None: a singular value lies within
+/// a factor √2 of the tolerance, where the Gram matrix's rounding could tip the rank decision;
+/// the caller then takes the basis itself. Outer None also when no singular value passes.
+pub fn visible_rank_and_dss(
+    norms: &[f64],
+    xp: &DMatrix<f64>,
+    r: &DVector<f64>,
+) -> Option<Option<(usize, f64)>> {
+    let n = xp.nrows();
+    let mut kept = Vec::new();
+    let mut scale = Vec::new();
+    for (c, &nc) in norms.iter().enumerate() {
+        if nc <= 1e-12 * (n as f64).sqrt() {
+            continue;
+        }
+        let pn = xp.column(c).norm();
+        if pn / nc >= MIN_VISIBLE {
+            kept.push(c);
+            scale.push(1.0 / pn);
+        }
+    }
+    if kept.is_empty() {
+        return None;
+    }
+    let s = if kept.len() == xp.ncols() {
+        xp.clone()
+    } else {
+        xp.select_columns(&kept)
+    };
+    let k = kept.len();
+    let g = DMatrix::from_fn(k, k, |i, j| scale[i] * scale[j]);
+    let g = gram(&s).component_mul(&g);
+    let b = DVector::from_fn(k, |i, _| scale[i] * s.column(i).dot(r));
+    if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
+        return Some(None);
+    }
+    let eig = nalgebra::SymmetricEigen::new(g);
+    let t2 = VISIBLE_RANK_TOL * VISIBLE_RANK_TOL;
+    // The Gram matrix's entries are sums of n products of unit-norm columns: rounding moves its
+    // eigenvalues by at most about k·n·ε.
+    let slack = (k * n) as f64 * f64::EPSILON;
+    let mut rank = 0;
+    let mut dss = 0.0;
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > 2.0 * t2 && l - slack > t2 {
+            rank += 1;
+            dss += eig.eigenvectors.column(i).dot(&b).powi(2) / l;
+        } else if !(l < 0.5 * t2 && l + slack < t2) {
+            return Some(None);
+        }
+    }
+    (rank > 0).then_some(Some((rank, dss)))
+}
+
+/// The singular-value tolerance of a visible part's basis ([`visible_basis_of_projection`]).
+pub const VISIBLE_RANK_TOL: f64 = 0.1 * MIN_VISIBLE;
+
+/// A candidate's columns with the columns of a growing orthonormal basis projected out, kept up
+/// to date as the basis grows: forward selection appends directions to its model at each step,
+/// so each candidate is projected past the new directions only, not past the whole model again.
+/// Each projection is applied twice, as in [`project_out`].
+#[derive(Debug, Clone)]
+pub struct Projection {
+    /// The column norms of the candidate before any projection.
+    pub norms: Vec<f64>,
+    /// Its columns past the first `upto` columns of the basis.
+    pub xp: DMatrix<f64>,
+    /// How many leading basis columns are projected out.
+    pub upto: usize,
+}
+
+impl Projection {
+    /// `x` past the orthonormal `q` (all its columns).
+    pub fn new(q: &DMatrix<f64>, x: &DMatrix<f64>) -> Self {
+        Projection {
+            norms: x.column_iter().map(|c| c.norm()).collect(),
+            xp: project_out(q, x),
+            upto: q.ncols(),
+        }
+    }
+
+    /// Projects out the columns of `q` past the first `upto` (`q` starts with the basis this
+    /// projection was made with, unchanged, and has orthonormal columns).
+    pub fn catch_up(&mut self, q: &DMatrix<f64>) {
+        if q.ncols() > self.upto {
+            let new = q.columns(self.upto, q.ncols() - self.upto).into_owned();
+            self.xp = project_out(&new, &self.xp);
+            self.upto = q.ncols();
+        }
+    }
 }
 
 /// Partial F-test of adding the orthonormal `u` (already orthogonal to the model) to a model
@@ -73,12 +234,16 @@ pub fn visible_basis(q: &DMatrix<f64>, x: &DMatrix<f64>) -> Option<(DMatrix<f64>
 /// where the p-value underflows: (p, ln p, ΔSS). Terms are ranked by ln p, so a 10× effect and
 /// its rivals do not all tie at 0.
 pub fn partial_f_ln(u: &DMatrix<f64>, r: &DVector<f64>, dof: usize) -> (f64, f64, f64) {
-    let k = u.ncols();
+    partial_f_ln_of(u.ncols(), (u.transpose() * r).norm_squared(), r, dof)
+}
+
+/// [`partial_f_ln`] of `k` added directions that explain `dss` of the residual `r`.
+pub fn partial_f_ln_of(k: usize, dss: f64, r: &DVector<f64>, dof: usize) -> (f64, f64, f64) {
     if k == 0 || dof <= k {
         return (1.0, 0.0, 0.0);
     }
     let rss = r.norm_squared();
-    let dss = (u.transpose() * r).norm_squared().min(rss);
+    let dss = dss.min(rss);
     let d2 = (dof - k) as f64;
     let f = (dss / k as f64) / ((rss - dss).max(1e-300) / d2);
     (f_sf(f, k as f64, d2), ln_f_sf(f, k as f64, d2), dss)
@@ -216,6 +381,33 @@ mod tests {
         // It spans A: projecting A out leaves nothing.
         assert!(project_out(&q, &a).norm() < 1e-12);
         assert_eq!(orth_basis(&DMatrix::zeros(9, 0), 1e-9).ncols(), 0);
+    }
+
+    #[test]
+    fn orth_basis_spans_what_the_svd_of_the_matrix_keeps() {
+        // 600 rows: two exactly dependent columns, one weak direction kept at tol 1e-9 and
+        // dropped at 1e-4 (σ ≈ 1e-6 after scaling), against the SVD of the matrix itself.
+        let mut a = DMatrix::from_fn(600, 8, |r, c| {
+            let x = r as f64 * 0.013 + c as f64 * 0.7;
+            (x * (c as f64 + 1.0)).sin() * (1.0 + c as f64)
+        });
+        let dependent = a.column(1) * 3.0 - a.column(4) * 0.25;
+        a.set_column(6, &dependent);
+        let other = DVector::from_fn(600, |r, _| (r as f64 * 0.031).cos().powi(3));
+        let weak = a.column(2) + &other * (1e-6 * a.column(2).norm() / other.norm());
+        a.set_column(7, &weak);
+        for tol in [1e-9, 1e-4] {
+            let fast = orth_basis(&a, tol);
+            let svd = orth_basis_by_svd(unit_columns(&a), tol);
+            assert_eq!(fast.ncols(), svd.ncols(), "rank at tol {tol}");
+            let k = fast.ncols();
+            assert!((fast.transpose() * &fast - DMatrix::identity(k, k)).norm() < 1e-12);
+            // The same span: each basis projects the other onto itself.
+            assert!(project_out(&fast, &svd).norm() < 1e-8, "span at tol {tol}");
+            assert!(project_out(&svd, &fast).norm() < 1e-8, "span at tol {tol}");
+        }
+        assert_eq!(orth_basis(&a, 1e-9).ncols(), 7);
+        assert_eq!(orth_basis(&a, 1e-4).ncols(), 6);
     }
 
     #[test]

@@ -145,13 +145,14 @@ pub fn library(dof: usize) -> Vec<Box<dyn Candidate>> {
     library_with_masses(dof, None)
 }
 
-/// The candidate library for a rig: compliance uses the rig's link masses where it states them.
+/// The candidate library for a rig: compliance uses the rig's link masses where it states them,
+/// with the payload it carried while recorded ([`Rig::masses_with_payload`]).
 pub fn library_for(rig: &Rig) -> Vec<Box<dyn Candidate>> {
-    let masses = rig
-        .link_masses
+    let link_masses = rig.masses_with_payload();
+    let masses = link_masses
         .iter()
         .any(Option::is_some)
-        .then(|| std::sync::Arc::new(rig.link_masses.clone()));
+        .then(|| std::sync::Arc::new(link_masses));
     library_with_masses(rig.chain.joints().len(), masses)
 }
 

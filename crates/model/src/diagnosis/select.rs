@@ -11,11 +11,15 @@
 //!
 //! Units: stacked regressors in mm per unit coefficient (3 rows per measurement).
 
-use super::linalg::{hcat, orth_basis, partial_f_ln, visible_basis};
+use super::linalg::{
+    hcat, orth_basis, partial_f_ln_of, project_out, visible_basis, visible_basis_of_projection,
+    visible_rank_and_dss, Projection,
+};
 use super::screen::{screen, Screen, ALPHA_PART};
 use super::shapes::{refine_position, shape_bases, Form, ShapeSpec, Variable};
 use super::{Candidate, Data, DiagnoseError, Standard, SEPARABLE_CORRELATION};
 use nalgebra::{DMatrix, DVector, Matrix3};
+use std::collections::HashMap;
 
 /// The candidate library over one recording, seen past the standard model.
 #[derive(Debug, Clone)]
@@ -207,22 +211,117 @@ struct TermTest {
     size: f64,
 }
 
-/// Tests the weighted columns `x` against the model `basis` leaving `residual`.
-fn term_test(
+/// The test of a term whose part past `basis` has the orthonormal basis `u`.
+fn test_visible(
     screen: &Screen,
     basis: &DMatrix<f64>,
     residual: &DVector<f64>,
-    x: &DMatrix<f64>,
+    u: DMatrix<f64>,
 ) -> Option<TermTest> {
-    let (u, _) = visible_basis(basis, x)?;
-    let dof = residual.len().saturating_sub(basis.ncols());
-    let (p, ln_p, dss) = partial_f_ln(&u, residual, dof);
-    let k = u.ncols();
+    let dss = (u.transpose() * residual).norm_squared();
+    let (p, ln_p, size) = test_figures(screen, basis, residual, u.ncols(), dss);
+    Some(TermTest { p, ln_p, u, size })
+}
+
+/// (p, ln p, size ÷ floor) of a term adding `k` directions that explain `dss` of `residual`.
+fn test_figures(
+    screen: &Screen,
+    basis: &DMatrix<f64>,
+    residual: &DVector<f64>,
+    k: usize,
+    dss: f64,
+) -> (f64, f64, f64) {
+    figures(screen, basis.ncols(), residual, k, dss)
+}
+
+/// [`test_figures`] against a model of `model_columns` orthonormal columns.
+fn figures(
+    screen: &Screen,
+    model_columns: usize,
+    residual: &DVector<f64>,
+    k: usize,
+    dss: f64,
+) -> (f64, f64, f64) {
+    let dof = residual.len().saturating_sub(model_columns);
+    let (p, ln_p, dss) = partial_f_ln_of(k, dss, residual, dof);
     let s2 = screen.noise_var().unwrap_or_else(|| {
         (residual.norm_squared() - dss).max(0.0) / dof.saturating_sub(k).max(1) as f64
     });
     let size = size_ratio(dss, k, s2, residual.len() / 3);
-    Some(TermTest { p, ln_p, u, size })
+    (p, ln_p, size)
+}
+
+/// The terms' columns past the growing model of [`forward_selection`], made when first
+/// tested: library candidates and shape bases by index.
+#[derive(Default)]
+struct Projections {
+    lib: HashMap<usize, Projection>,
+    shapes: HashMap<usize, Projection>,
+}
+
+/// A term's test figures, with its basis when it was needed to find them.
+struct Quick {
+    p: f64,
+    ln_p: f64,
+    /// Directions the term adds.
+    k: usize,
+    size: f64,
+    full: Option<TermTest>,
+}
+
+/// The test of term `k` (columns `x`) against the model of `sel`, through its kept projection
+/// and without forming its basis where the Gram matrix settles its rank
+/// ([`visible_rank_and_dss`]).
+fn quick_test(
+    screen: &Screen,
+    sel: &Selection,
+    cache: &mut HashMap<usize, Projection>,
+    k: usize,
+    x: &DMatrix<f64>,
+) -> Option<Quick> {
+    let proj = cache
+        .entry(k)
+        .or_insert_with(|| Projection::new(&sel.basis, x));
+    proj.catch_up(&sel.basis);
+    match visible_rank_and_dss(&proj.norms, &proj.xp, &sel.residual)? {
+        Some((rank, dss)) => {
+            let (p, ln_p, size) = test_figures(screen, &sel.basis, &sel.residual, rank, dss);
+            Some(Quick {
+                p,
+                ln_p,
+                k: rank,
+                size,
+                full: None,
+            })
+        }
+        None => {
+            let t = full_test(screen, sel, cache, k, x)?;
+            Some(Quick {
+                p: t.p,
+                ln_p: t.ln_p,
+                k: t.u.ncols(),
+                size: t.size,
+                full: Some(t),
+            })
+        }
+    }
+}
+
+/// The test of term `k` (columns `x`) against the model of `sel` with its basis, through its
+/// kept projection.
+fn full_test(
+    screen: &Screen,
+    sel: &Selection,
+    cache: &mut HashMap<usize, Projection>,
+    k: usize,
+    x: &DMatrix<f64>,
+) -> Option<TermTest> {
+    let proj = cache
+        .entry(k)
+        .or_insert_with(|| Projection::new(&sel.basis, x));
+    proj.catch_up(&sel.basis);
+    let (u, _) = visible_basis_of_projection(&proj.norms, &proj.xp)?;
+    test_visible(screen, &sel.basis, &sel.residual, u)
 }
 
 /// Forward selection over the library and the shape bases: at each step the term with the
@@ -256,17 +355,34 @@ pub fn forward_selection(
     };
     // Orthonormal basis of the chosen effects' visible parts, for the separability check.
     let mut chosen_visible = DMatrix::zeros(nrows, 0);
+    // Each term's columns past the model so far: the model only grows inside this loop
+    // (`add_direction` appends), so each step projects out the new directions only.
+    let mut projected = Projections::default();
     let mut first = true;
     loop {
         let kk = remaining.len().max(1) as f64;
-        let lib = best_step(screen, &sel, cands, &remaining, &chosen_visible);
+        let lib = best_step(
+            screen,
+            &sel,
+            cands,
+            &remaining,
+            &chosen_visible,
+            &mut projected.lib,
+        );
         if first {
             sel.first_best = lib.as_ref().map(|(k, t)| (*k, t.p));
             first = false;
         }
         let lib = lib.filter(|(_, t)| t.p < ALPHA_PART / kk);
         let shape = if sel.shapes.len() < MAX_SHAPES {
-            best_shape(screen, &sel, shapes, &remaining_shapes, nb)
+            best_shape(
+                screen,
+                &sel,
+                shapes,
+                &remaining_shapes,
+                nb,
+                &mut projected.shapes,
+            )
         } else {
             None
         };
@@ -417,18 +533,41 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
     let kk = cands.testable.len().max(1) as f64;
     let nb = shapes.testable() as f64;
     let rw = &screen.residual;
+    let nrows = screen.rows();
     loop {
         let nlib = sel.chosen.len();
         let mut worst: Option<(usize, f64)> = None;
+        // Each term past the standard model, once per round: the model without term i is the
+        // standard model's orthonormal basis beside a basis `w` of the other terms' parts past
+        // it (what `model_without` spans, without refactoring the standard model each time),
+        // and rw is already orthogonal to the standard model.
+        let past: Vec<Option<Projection>> = (0..nlib + sel.shapes.len())
+            .map(|i| {
+                let x = if i < nlib {
+                    cands.weighted[sel.chosen[i].cand].as_ref()
+                } else {
+                    shapes.weighted[sel.shapes[i - nlib].shape].as_ref()
+                };
+                x.map(|x| Projection::new(&screen.basis, x))
+            })
+            .collect();
         for i in 0..nlib + sel.shapes.len() {
-            let q = model_without(screen, sel, cands, shapes, Some(i));
-            let r = rw - &q * (q.transpose() * rw);
-            let x = if i < nlib {
-                cands.weighted[sel.chosen[i].cand].as_ref()
-            } else {
-                shapes.weighted[sel.shapes[i - nlib].shape].as_ref()
-            };
-            let fails = match x.and_then(|x| term_test(screen, &q, &r, x)) {
+            let others: Vec<DMatrix<f64>> = past
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .filter_map(|(_, p)| p.as_ref().map(|p| p.xp.clone()))
+                .collect();
+            let w = orth_basis(&hcat(&others, nrows), 1e-9);
+            let r = rw - &w * (w.transpose() * rw);
+            let model_columns = screen.basis.ncols() + w.ncols();
+            let tested = past[i].as_ref().and_then(|p| {
+                let (u, _) = visible_basis_of_projection(&p.norms, &project_out(&w, &p.xp))?;
+                let dss = (u.transpose() * &r).norm_squared();
+                let (p, ln_p, size) = figures(screen, model_columns, &r, u.ncols(), dss);
+                Some(TermTest { p, ln_p, u, size })
+            });
+            let fails = match tested {
                 None => Some(0.0),
                 Some(t) if i < nlib => (t.p >= ALPHA_PART / kk).then_some(t.ln_p),
                 Some(t) => (t.p >= ALPHA_PART / nb || t.size < SHAPE_MIN_SIZE).then_some(t.ln_p),
@@ -465,11 +604,11 @@ fn best_shape(
     shapes: &Shapes,
     remaining: &[usize],
     nb: f64,
+    cache: &mut HashMap<usize, Projection>,
 ) -> Option<(usize, TermTest)> {
-    let mut best: Option<(usize, TermTest)> = None;
-    let mut press_now: Option<(Vec<Matrix3<f64>>, f64)> = None;
     let columns_left = (sel.residual.len().saturating_sub(sel.basis.ncols()) / 3)
         .saturating_sub(sel.shapes.iter().map(|c| c.x.ncols()).sum());
+    let mut eligible: Vec<(usize, Quick)> = Vec::new();
     for &k in remaining {
         let Some(x) = &shapes.weighted[k] else {
             continue;
@@ -481,22 +620,37 @@ fn best_shape(
         if v != Variable::Position && sel.shapes.iter().any(|c| c.spec.variable == v) {
             continue;
         }
-        let Some(t) = term_test(screen, &sel.basis, &sel.residual, x) else {
+        let Some(q) = quick_test(screen, sel, cache, k, x) else {
             continue;
         };
-        tracing::trace!(shape = %shapes.specs[k].label(), p = t.p, ln_p = t.ln_p, size = t.size, "shape basis");
-        if t.p >= ALPHA_PART / nb || t.size < SHAPE_MIN_SIZE || t.u.ncols() > columns_left {
+        tracing::trace!(shape = %shapes.specs[k].label(), p = q.p, ln_p = q.ln_p, size = q.size, "shape basis");
+        if q.p >= ALPHA_PART / nb || q.size < SHAPE_MIN_SIZE || q.k > columns_left {
             continue;
         }
-        if best.as_ref().is_some_and(|b| t.ln_p >= b.1.ln_p) {
-            continue;
-        }
-        let (hat, before) = press_now.get_or_insert_with(|| {
-            let hat = hat_blocks(&sel.basis);
-            let before = press(&hat, &sel.residual);
-            (hat, before)
-        });
-        let before = *before;
+        eligible.push((k, q));
+    }
+    // The chosen shape is the eligible one with the smallest p-value among those that lower
+    // PRESS (the first in library order on a tie): PRESS, which needs the shape's basis, is
+    // taken in order of p-value until one lowers it.
+    eligible.sort_by(|a, b| a.1.ln_p.total_cmp(&b.1.ln_p));
+    if eligible.is_empty() {
+        return None;
+    }
+    let hat = hat_blocks(&sel.basis);
+    let before = press(&hat, &sel.residual);
+    for (k, q) in eligible {
+        let t = match q.full {
+            Some(t) => t,
+            None => {
+                let Some(x) = &shapes.weighted[k] else {
+                    continue;
+                };
+                match full_test(screen, sel, cache, k, x) {
+                    Some(t) => t,
+                    None => continue,
+                }
+            }
+        };
         let with: Vec<Matrix3<f64>> = hat
             .iter()
             .zip(hat_blocks(&t.u))
@@ -506,10 +660,10 @@ fn best_shape(
         let after = press(&with, &r);
         tracing::trace!(shape = %shapes.specs[k].label(), before, after, "shape PRESS");
         if after < before {
-            best = Some((k, t));
+            return Some((k, t));
         }
     }
-    best
+    None
 }
 
 /// The 3 × 3 diagonal blocks H_ii = Q_i Q_iᵀ of the hat matrix of the orthonormal basis `q`,
@@ -549,8 +703,9 @@ fn best_step(
     cands: &Candidates,
     remaining: &[usize],
     chosen_visible: &DMatrix<f64>,
+    cache: &mut HashMap<usize, Projection>,
 ) -> Option<(usize, TermTest)> {
-    let mut best: Option<(usize, TermTest)> = None;
+    let mut best: Option<(usize, Quick)> = None;
     for &k in remaining {
         let Some(x) = &cands.weighted[k] else {
             continue;
@@ -562,14 +717,19 @@ fn best_step(
                 continue;
             }
         }
-        let Some(t) = term_test(screen, &sel.basis, &sel.residual, x) else {
+        let Some(q) = quick_test(screen, sel, cache, k, x) else {
             continue;
         };
-        if best.as_ref().is_none_or(|b| t.ln_p < b.1.ln_p) {
-            best = Some((k, t));
+        if best.as_ref().is_none_or(|b| q.ln_p < b.1.ln_p) {
+            best = Some((k, q));
         }
     }
-    best
+    let (k, q) = best?;
+    let t = match q.full {
+        Some(t) => t,
+        None => full_test(screen, sel, cache, k, cands.weighted[k].as_ref()?)?,
+    };
+    Some((k, t))
 }
 
 /// The largest canonical correlation between the spans of two orthonormal bases.

@@ -25,8 +25,8 @@ mod space;
 mod tree;
 
 pub use planner::{
-    divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode, TestPlan,
-    CONFIDENCE_Z,
+    divide, DivisionError, DivisionOptions, DivisionReport, MeasureError, Measurer, Mode,
+    SplitOrder, TestPlan, CONFIDENCE_Z,
 };
 pub use select::Selection;
 pub use space::{Bounds, DivisionSpace, Space};

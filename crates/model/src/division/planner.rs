@@ -141,6 +141,38 @@ pub struct DivisionOptions {
     /// `[workspace]` bounds): offline, a recording's extent, so a 6-DOF arm with ±360° limits
     /// is not divided over the empty space its recording never reached.
     pub bounds: Option<Bounds>,
+    /// Which failing region splits next ([`SplitOrder`]); it matters once the region cap
+    /// stops the division with regions still above the demand.
+    pub split_order: SplitOrder,
+    /// Planning mode: a half whose own measurements cannot separate its CEPs (κ above
+    /// [`Self::kappa_max`]) is still identified, its unseen directions held at its parent's
+    /// CEPs by the prior, and judged by its test like any other; false stops its parent's split
+    /// there (the paper's "too small to identify").
+    pub prior_holds_unseen: bool,
+    /// A half's CEPs are a MAP estimate around its parent's (the prior of
+    /// [`Self::prior_sigma`]; true, rigcal's) or the paper's plain least squares (false, which
+    /// also turns [`Self::prior_holds_unseen`] off: nothing holds what a half cannot see).
+    pub map_prior: bool,
+}
+
+/// Which failing leaf the division splits next.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SplitOrder {
+    /// The leaf with the largest test verdict (the paper's "worst first").
+    Worst,
+    /// The leaf with the largest excess over the demand times its share of the workspace's
+    /// volume: at a region cap, the regions left above the demand are the smallest part of the
+    /// workspace, not large regions barely above it beside small ones far above it, which
+    /// further halving helps little (docs/seeds.md: at Fig. 7's cap of 130 the tuning path's
+    /// worst points lay in regions of 1/64–1/128 of the workspace left at 0.12–0.13 mm).
+    ExcessVolume,
+    /// Between the two: the excess over the demand times the region's size (the cube root of
+    /// its volume share), which is how likely a path, a line, is to cross it. The default,
+    /// chosen on the tuning set (docs/seeds.md: section 6's claims at ≥ 19 of 20 tuning seeds,
+    /// 16 of 22 against 14 worst first and 15 excess × volume); section 7's preset keeps worst
+    /// first, chosen there the same way.
+    #[default]
+    ExcessSize,
 }
 
 /// How a region's test points are measured (planning mode): the levers that cut a rig's test
@@ -191,6 +223,9 @@ impl Default for DivisionOptions {
             learner_tolerance: 0.0,
             test_plan: TestPlan::default(),
             bounds: None,
+            split_order: SplitOrder::default(),
+            prior_holds_unseen: true,
+            map_prior: true,
         }
     }
 }
@@ -331,7 +366,7 @@ pub fn divide(
     let mut leaves = 1;
     progress(leaves, opts.max_regions);
     while leaves < opts.max_regions {
-        let Some(path) = next_to_split(&root, opts.accuracy_mm, opts.unmeasurable.as_ref()) else {
+        let Some(path) = next_to_split(&root, opts) else {
             break;
         };
         let node = node_at_mut(&mut root, &path);
@@ -396,12 +431,11 @@ const TEST_TOP_UP: usize = 8;
 
 /// The leaf to split next: one that holds the unmeasurable box as a part (its test could not
 /// look there, so it cannot be accepted until the box is a region of its own), else the failing
-/// leaf with the worst test error.
-fn next_to_split(
-    root: &RegionNode,
-    accuracy: f64,
-    unmeasurable: Option<&Bounds>,
-) -> Option<Vec<usize>> {
+/// leaf first in [`DivisionOptions::split_order`].
+fn next_to_split(root: &RegionNode, opts: &DivisionOptions) -> Option<Vec<usize>> {
+    let accuracy = opts.accuracy_mm;
+    let unmeasurable = opts.unmeasurable.as_ref();
+    let full = root.bounds;
     fn walk(
         n: &RegionNode,
         path: &mut Vec<usize>,
@@ -429,7 +463,12 @@ fn next_to_split(
         if unmeasurable.is_some_and(|u| n.bounds.encloses(u) && n.bounds != *u) {
             return Some(f64::INFINITY);
         }
-        n.test.map(|t| t.verdict_mm()).filter(|&e| e > accuracy)
+        let verdict = n.test.map(|t| t.verdict_mm()).filter(|&e| e > accuracy)?;
+        Some(match opts.split_order {
+            SplitOrder::Worst => verdict,
+            SplitOrder::ExcessVolume => (verdict - accuracy) * n.bounds.volume_share(&full),
+            SplitOrder::ExcessSize => (verdict - accuracy) * n.bounds.volume_share(&full).cbrt(),
+        })
     };
     let mut best = None;
     walk(root, &mut Vec::new(), &judge, &mut best);
@@ -670,20 +709,28 @@ impl Ctx<'_, '_> {
         let mut fo = FitOptions::default();
         let start = match parent {
             Some(p) => {
-                fo.prior = Some(self.prior(p));
+                if self.opts.map_prior {
+                    fo.prior = Some(self.prior(p));
+                }
                 expand(self.basis, self.n_params, p)
             }
             None => ErrorParams::zeros(self.rig.chain.layout()),
         };
         let r = fit(&self.rig.chain, &obs, &start, self.basis, &fo).map_err(|e| e.to_string())?;
-        if r.kappa > self.opts.kappa_max {
+        let held_by_prior = self.opts.prior_holds_unseen
+            && self.opts.map_prior
+            && parent.is_some()
+            && matches!(self.mode, Mode::Planning(_));
+        if r.kappa > self.opts.kappa_max && !held_by_prior {
             return Err(format!(
                 "κ = {:.2e} exceeds {:.0e}: the region is too small to identify its CEPs",
                 r.kappa, self.opts.kappa_max
             ));
         }
         let cep = self.basis.iter().map(|&i| r.params.get(i)).collect();
-        Ok((cep, r.kappa, obs.len()))
+        // A rank-deficient data Jacobian (κ infinite, a half held by the prior) is recorded as
+        // the largest finite κ: model files hold finite numbers only.
+        Ok((cep, r.kappa.min(f64::MAX), obs.len()))
     }
 
     /// Sets [`RegionNode::learner_cep`] below `node` (whose own learner CEPs are `reference`),
@@ -994,7 +1041,7 @@ impl Ctx<'_, '_> {
                     .map(|t| t.obs.clone()),
             );
             let fo = FitOptions {
-                prior: Some(self.prior(parent)),
+                prior: self.opts.map_prior.then(|| self.prior(parent)),
                 ..FitOptions::default()
             };
             let start = expand(self.basis, self.n_params, parent);

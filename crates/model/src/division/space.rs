@@ -79,6 +79,20 @@ impl Bounds {
         (a, b)
     }
 
+    /// The box's share of `full`'s volume (in the division space's own coordinates).
+    pub fn volume_share(&self, full: &Bounds) -> f64 {
+        (0..3)
+            .map(|k| {
+                let w = full.hi[k] - full.lo[k];
+                if w > 0.0 {
+                    (self.hi[k] - self.lo[k]) / w
+                } else {
+                    1.0
+                }
+            })
+            .product()
+    }
+
     /// Smallest width as a fraction of the full range.
     pub fn min_fraction(&self, full: &Bounds) -> f64 {
         (0..3)

@@ -668,7 +668,7 @@ pub fn fit_recording_effects(
 ) -> Result<EffectFit, EffectError> {
     let skip: Vec<u64> = id.outliers.iter().map(|o| o.seq).collect();
     let data = effect_observations(rec, &skip);
-    fit_effects(&id.chain, &rig.link_masses, &id.fit, &data, specs)
+    fit_effects(&id.chain, &rig.masses_with_payload(), &id.fit, &data, specs)
 }
 
 #[cfg(test)]

@@ -366,12 +366,32 @@ impl<E: FrameEmulator> ByteEmulator for SlcanAdapter<E> {
 /// The panel emulator evaluates contacts lazily, for moments that may lie before the table's
 /// latest move began, so each axis keeps its recent profiles: the position at `t` comes from the
 /// last profile started at or before `t`.
+///
+/// It also carries the panel controller's touch output as the drives' touch-probe inputs see
+/// it ([`TouchEdge`]): the panel emulator records each contact's start, the drives latch from
+/// it (CiA 402 touch probe, `[devices.table] touch_probe`). The emulated wiring reaches every
+/// drive's probe 1 input; the driver uses the z drive's.
 #[derive(Debug, Clone)]
 pub struct TableTruth {
     /// Per axis x, y, z: the current profile.
     pub axes: [Profile; 3],
     /// Per axis, earlier profiles (oldest first), at most [`HISTORY`] of them.
     past: [VecDeque<Profile>; 3],
+    /// The touch output's recent positive edges (oldest first), at most [`HISTORY`] of them.
+    touches: VecDeque<TouchEdge>,
+}
+
+/// A positive edge of the panel controller's touch output: the moment the pin touched, on the
+/// emulators' clock, and where the table stood then (mm, table frame). The z is the exact
+/// contact height of the world (where the true panel centre rises to the true pin tip), found
+/// from the geometry, not from when anyone looked: it is the same whatever the bus, panel or
+/// pseudo-terminal latencies, in-process and served alike.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TouchEdge {
+    /// When the contact began (emulators' clock).
+    pub at: Duration,
+    /// The table's position then (mm, table frame).
+    pub table_mm: [f64; 3],
 }
 
 /// Motions an emulated device remembers for lazily evaluated past moments.
@@ -387,7 +407,25 @@ impl TableTruth {
                 Profile::still(p[2]),
             ],
             past: Default::default(),
+            touches: VecDeque::new(),
         }
+    }
+
+    /// The touch output rose: a contact began (the panel emulator calls this).
+    pub fn touch_began(&mut self, edge: TouchEdge) {
+        self.touches.push_back(edge);
+        if self.touches.len() > HISTORY {
+            self.touches.pop_front();
+        }
+    }
+
+    /// The touch output's first positive edge after `after` and not after `until`: what a
+    /// probe armed at `after` has latched by `until`.
+    pub fn first_touch(&self, after: Duration, until: Duration) -> Option<TouchEdge> {
+        self.touches
+            .iter()
+            .find(|e| e.at > after && e.at <= until)
+            .copied()
     }
 
     /// Starts `profile` on `axis` (0 x, 1 y, 2 z), keeping the current one for past moments.

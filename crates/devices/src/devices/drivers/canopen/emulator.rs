@@ -16,6 +16,14 @@
 //! EMCY; a rising edge of bit 7 clears it (to *switch on disabled*) and sends an EMCY "no error".
 //! A quick stop (controlword `0x0002`) stops the axis where it is and leaves the drive in
 //! *switch on disabled* (quick stop option code 2, the CiA 402 default), its set-point gone.
+//! Touch probe 1 (CiA 402 0x60B8 function, 0x60B9 status, 0x60BA positive-edge position): first
+//! event, triggered by the probe 1 input, positive edge (function `0x0011`; the other modes
+//! abort with "value range exceeded"). Its input is the panel controller's touch output
+//! ([`TouchEdge`](crate::devices::emulators::TouchEdge)s in the shared truth): armed (bit 0 or
+//! bit 4 switched on) at a moment, the drive stores the first edge after it, its axis position
+//! at the world's touch moment quantised to counts — however late the status is asked for,
+//! so the latched height does not depend on bus, panel or pseudo-terminal latency. Switching
+//! bit 0 or bit 4 off clears the stored status; the last value stays readable.
 //! Faults a test injects ([`TableFaults`](crate::devices::emulators::faults::TableFaults)):
 //! silent heartbeats, ignored or late SDOs, a seeded loss of SDO frames; the drives' last
 //! controlwords are kept there for tests to look at.
@@ -33,10 +41,65 @@ use crate::protocols::can::CanFrame;
 use crate::protocols::canopen::{
     od, CanOpenMessage, Controlword, DriveState, EmcyErrorCode, Emergency, Heartbeat, NmtCommand,
     NmtState, NodeId, SdoAbortCode, SdoData, SdoRequest, SdoResponse, Statusword,
+    TouchProbeFunction, TouchProbeStatus,
 };
 
-/// One emulated CiA 402 drive. Seventeen fields: the objects a drive holds (controlword, mode,
-/// target, profile, heartbeat period, error code) and its state machines (NMT, CiA 402, fault).
+/// A drive's touch probe 1 (see the module docs).
+#[derive(Debug, Clone, Copy)]
+struct TouchProbe {
+    /// 0x60B8 as last written.
+    function: TouchProbeFunction,
+    /// When it was armed for the next positive edge; `None` while switched off.
+    armed_at: Option<Duration>,
+    /// Whether a positive edge is stored since it was armed (0x60B9 bit 1).
+    stored: bool,
+    /// 0x60BA: the last positive-edge position (counts).
+    positive_counts: i32,
+}
+
+impl TouchProbe {
+    fn off() -> Self {
+        TouchProbe {
+            function: TouchProbeFunction::OFF,
+            armed_at: None,
+            stored: false,
+            positive_counts: 0,
+        }
+    }
+
+    /// 0x60B8 written at `now`: arms on switching the positive edge's sampling on, clears on
+    /// switching it off.
+    fn write(&mut self, f: TouchProbeFunction, now: Duration) {
+        let was = self.function.probe1_enabled() && self.function.probe1_positive_edge();
+        let is = f.probe1_enabled() && f.probe1_positive_edge();
+        self.function = f;
+        if !is {
+            self.armed_at = None;
+            self.stored = false;
+        } else if !was {
+            self.armed_at = Some(now);
+            self.stored = false;
+        }
+    }
+
+    fn status(&self) -> TouchProbeStatus {
+        TouchProbeStatus::probe1(self.function.probe1_enabled(), self.stored)
+    }
+}
+
+/// Whether the emulated drives support the touch probe function `f`: probe 1 only, first
+/// event, its own input, positive edge (or everything off).
+fn supported_probe_function(f: TouchProbeFunction) -> bool {
+    f.0 & 0xFF00 == 0
+        && !f.probe1_continuous()
+        && f.probe1_source() == 0
+        && !f.probe1_negative_edge()
+        && f.0 & 0x00C0 == 0
+}
+
+/// One emulated CiA 402 drive. Eighteen fields: the objects a drive holds (controlword, mode,
+/// target, profile, heartbeat period, error code, touch probe) and its state machines (NMT,
+/// CiA 402, fault).
 #[derive(Debug)]
 struct Drive {
     node: NodeId,
@@ -56,6 +119,7 @@ struct Drive {
     following: bool,
     error_code: u16,
     fault_at: Option<(Duration, u16)>,
+    probe: TouchProbe,
 }
 
 /// The three emulated drives.
@@ -98,6 +162,7 @@ impl TableEmulator {
                     following: false,
                     error_code: 0,
                     fault_at: None,
+                    probe: TouchProbe::off(),
                 }
             })
             .collect();
@@ -250,6 +315,22 @@ impl TableEmulator {
         }
     }
 
+    /// Drive `k`'s probe, armed and with nothing stored yet, stores the touch output's first
+    /// edge after its arming that came by `now`: the axis position at the edge, in counts.
+    fn latch_probe(&mut self, k: usize, now: Duration) {
+        let Some(d) = self.drives.get(k) else { return };
+        let (Some(armed), false) = (d.probe.armed_at, d.probe.stored) else {
+            return;
+        };
+        let Some(edge) = lock(&self.truth).first_touch(armed, now) else {
+            return;
+        };
+        let d = &mut self.drives[k];
+        let mm = edge.table_mm.get(d.axis).copied().unwrap_or(0.0);
+        d.probe.positive_counts = (mm * d.cpm).round() as i32;
+        d.probe.stored = true;
+    }
+
     fn sdo(&mut self, node: NodeId, req: SdoRequest, now: Duration) -> SdoResponse {
         let Some(k) = self.drives.iter().position(|d| d.node == node) else {
             return SdoResponse::Abort {
@@ -261,6 +342,9 @@ impl TableEmulator {
         let axis = self.drives[k].axis;
         match req {
             SdoRequest::Upload { index, sub } => {
+                if matches!(index, od::TOUCH_PROBE_STATUS | od::TOUCH_PROBE_1_POSITIVE) {
+                    self.latch_probe(k, now);
+                }
                 let d = &self.drives[k];
                 let data = match index {
                     od::STATUSWORD => Some(SdoData::from_u16(self.statusword(k, now))),
@@ -280,6 +364,9 @@ impl TableEmulator {
                     od::ERROR_REGISTER => Some(SdoData::from_u8(u8::from(d.error_code != 0))),
                     od::DEVICE_TYPE => Some(SdoData::from_u32(EMULATED_DEVICE_TYPE)),
                     od::IDENTITY => identity(sub, node),
+                    od::TOUCH_PROBE_FUNCTION => Some(SdoData::from_u16(d.probe.function.0)),
+                    od::TOUCH_PROBE_STATUS => Some(SdoData::from_u16(d.probe.status().0)),
+                    od::TOUCH_PROBE_1_POSITIVE => Some(SdoData::from_i32(d.probe.positive_counts)),
                     _ => None,
                 };
                 match data {
@@ -347,13 +434,28 @@ impl TableEmulator {
                             (d.hb_ms > 0).then(|| now + Duration::from_millis(u64::from(d.hb_ms)));
                         ok
                     }
-                    od::STATUSWORD | od::POSITION_ACTUAL | od::MODES_OF_OPERATION_DISPLAY => {
-                        SdoResponse::Abort {
-                            index,
-                            sub,
-                            code: SdoAbortCode::ReadOnly,
+                    od::TOUCH_PROBE_FUNCTION => {
+                        let f = TouchProbeFunction(v as u16);
+                        if supported_probe_function(f) {
+                            self.drives[k].probe.write(f, now);
+                            ok
+                        } else {
+                            SdoResponse::Abort {
+                                index,
+                                sub,
+                                code: SdoAbortCode::ValueRangeExceeded,
+                            }
                         }
                     }
+                    od::STATUSWORD
+                    | od::POSITION_ACTUAL
+                    | od::MODES_OF_OPERATION_DISPLAY
+                    | od::TOUCH_PROBE_STATUS
+                    | od::TOUCH_PROBE_1_POSITIVE => SdoResponse::Abort {
+                        index,
+                        sub,
+                        code: SdoAbortCode::ReadOnly,
+                    },
                     _ => SdoResponse::Abort {
                         index,
                         sub,
@@ -534,5 +636,110 @@ mod mandatory_objects {
             assert_eq!(upload(&mut e, node, od::IDENTITY, 4), Some(u32::from(id)));
             assert_eq!(upload(&mut e, node, od::IDENTITY, 5), None);
         }
+    }
+}
+
+#[cfg(test)]
+mod touch_probe {
+    use super::*;
+    use crate::devices::emulators::{TableTruth, TouchEdge};
+    use std::sync::Mutex;
+
+    const S: Duration = Duration::from_secs(1);
+
+    fn drive() -> (TableEmulator, SharedTable, NodeId) {
+        let cfg = TableConfig::default();
+        let truth: SharedTable = Arc::new(Mutex::new(TableTruth::at([0.0; 3])));
+        let e = TableEmulator::new(&cfg, Arc::clone(&truth));
+        (e, truth, NodeId::new(cfg.node_ids[2]).unwrap())
+    }
+
+    fn read(e: &mut TableEmulator, node: NodeId, index: u16, at: Duration) -> u32 {
+        match e.sdo(node, SdoRequest::Upload { index, sub: 0 }, at) {
+            SdoResponse::UploadData { data, .. } => data.to_u32(),
+            other => panic!("read {index:#06x}: {other:?}"),
+        }
+    }
+
+    fn write(e: &mut TableEmulator, node: NodeId, index: u16, v: u16, at: Duration) -> bool {
+        let data = SdoData::from_u16(v);
+        let req = SdoRequest::Download {
+            index,
+            sub: 0,
+            data,
+        };
+        matches!(e.sdo(node, req, at), SdoResponse::DownloadAck { .. })
+    }
+
+    fn edge(truth: &SharedTable, at: Duration, z: f64) {
+        lock(truth).touch_began(TouchEdge {
+            at,
+            table_mm: [100.0, 50.0, z],
+        });
+    }
+
+    fn status(e: &mut TableEmulator, node: NodeId, at: Duration) -> TouchProbeStatus {
+        TouchProbeStatus(read(e, node, od::TOUCH_PROBE_STATUS, at) as u16)
+    }
+
+    #[test]
+    fn an_armed_probe_stores_the_first_edge_after_its_arming_however_late_it_is_asked() {
+        let (mut e, truth, z) = drive();
+        assert_eq!(status(&mut e, z, Duration::ZERO), TouchProbeStatus(0));
+        edge(&truth, S / 2, 7.0); // before the arming: not latched
+        assert!(write(&mut e, z, od::TOUCH_PROBE_FUNCTION, 0x0011, S));
+        assert_eq!(read(&mut e, z, od::TOUCH_PROBE_FUNCTION, S), 0x0011);
+        let st = status(&mut e, z, S + S / 2);
+        assert!(
+            st.probe1_enabled() && !st.probe1_positive_stored(),
+            "{st:?}"
+        );
+        // The touch at 2 s, at 12.3456 mm: 12346 counts at 1000 counts/mm, whether the
+        // status is asked 1 ms or 150 ms after it (the position is the world's at the edge).
+        edge(&truth, 2 * S, 12.3456);
+        edge(&truth, 3 * S, 20.0); // a later edge: first event only
+        for late in [1, 20, 150] {
+            let at = 2 * S + Duration::from_millis(late);
+            assert!(status(&mut e, z, at).probe1_positive_stored());
+            assert_eq!(
+                read(&mut e, z, od::TOUCH_PROBE_1_POSITIVE, at) as i32,
+                12346
+            );
+        }
+        assert_eq!(
+            read(&mut e, z, od::TOUCH_PROBE_1_POSITIVE, 4 * S) as i32,
+            12346
+        );
+        // Re-armed (off, then on): the status is cleared, the value kept until the next edge.
+        assert!(write(&mut e, z, od::TOUCH_PROBE_FUNCTION, 0x0000, 5 * S));
+        assert_eq!(status(&mut e, z, 5 * S), TouchProbeStatus(0));
+        assert!(write(&mut e, z, od::TOUCH_PROBE_FUNCTION, 0x0011, 5 * S));
+        assert_eq!(status(&mut e, z, 6 * S), TouchProbeStatus(0x0001));
+        assert_eq!(
+            read(&mut e, z, od::TOUCH_PROBE_1_POSITIVE, 6 * S) as i32,
+            12346
+        );
+        edge(&truth, 7 * S, -0.0014);
+        assert_eq!(status(&mut e, z, 8 * S), TouchProbeStatus(0x0003));
+        assert_eq!(
+            read(&mut e, z, od::TOUCH_PROBE_1_POSITIVE, 8 * S) as i32,
+            -1
+        );
+    }
+
+    #[test]
+    fn unsupported_probe_modes_and_writes_to_the_read_only_objects_are_refused() {
+        let (mut e, _, z) = drive();
+        // Continuous (bit 1), the zero impulse (bits 2–3 = 01), the negative edge (bit 5),
+        // probe 2 (bit 8): the emulated drives latch probe 1's first positive edge only.
+        for f in [0x0013, 0x0015, 0x0031, 0x0111] {
+            assert!(
+                !write(&mut e, z, od::TOUCH_PROBE_FUNCTION, f, S),
+                "{f:#06x}"
+            );
+        }
+        assert!(!write(&mut e, z, od::TOUCH_PROBE_STATUS, 0x0003, S));
+        assert!(!write(&mut e, z, od::TOUCH_PROBE_1_POSITIVE, 5, S));
+        assert_eq!(read(&mut e, z, od::TOUCH_PROBE_FUNCTION, S), 0);
     }
 }

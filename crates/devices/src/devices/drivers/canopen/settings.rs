@@ -7,7 +7,15 @@
 //! transport = "sim"                 # "can0", "socketcan:can0", "slcan:/dev/ttyACM0"
 //! node_ids = [1, 2, 3]
 //! counts_per_mm = [1000, 1000, 1000]
+//! touch_probe = false               # true: the z drive latches the contact height (see below)
 //! ```
+//!
+//! `touch_probe = true` needs the panel controller's touch output wired to the z drive's touch
+//! probe 1 input, and a drive with the CiA 402 touch probe objects (0x60B8–0x60BA): the contact
+//! height is then the position the drive latched at the touch's positive edge, not the
+//! position read after the touch packet came (conventions §8). The drive's objects are checked
+//! at bring-up; the wiring only shows in use (a touch packet without a latched edge costs the
+//! contact, with a message naming the wiring).
 
 use serde::{Deserialize, Serialize};
 
@@ -18,7 +26,7 @@ use crate::transports::SlcanBusConfig;
 pub const DRIVER: &str = "canopen";
 
 /// `[devices.table]`: the table's driver and the settings of its three CiA 402 drives (the
-/// only table driver so far). Fourteen fields: one per key of the section, which serde reads
+/// only table driver so far). Fifteen fields: one per key of the section, which serde reads
 /// flat.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -51,6 +59,10 @@ pub struct TableConfig {
     pub poll_ms: u64,
     /// Within a pass, how far below the highest z so far a move may go (mm).
     pub pass_retract_mm: f64,
+    /// The z drive latches the contact height with its CiA 402 touch probe 1 (positive edge of
+    /// its probe input, wired to the panel controller's touch output) instead of the session
+    /// reading the position after the touch packet (see the module docs). Default false.
+    pub touch_probe: bool,
 }
 
 impl Default for TableConfig {
@@ -70,6 +82,7 @@ impl Default for TableConfig {
             sdo_timeout_ms: 200,
             poll_ms: 2,
             pass_retract_mm: 10.0,
+            touch_probe: false,
         }
     }
 }

@@ -16,6 +16,12 @@
 //! unanswered is sent again (up to [`SDO_ATTEMPTS`] times) before its timeout is an error. A
 //! safe stop ([`Table::quick_stop`]) sends the CiA 402 quick stop command to every drive.
 //!
+//! With `touch_probe = true` (`[devices.table]`) the z drive latches the contact height: its
+//! touch probe 1 (0x60B8) is checked at bring-up, armed before an approach (switched off, then
+//! on for the first positive edge of its input), and its stored position (0x60BA) read once
+//! its status (0x60B9) says a positive edge is stored ([`Table::arm_touch_probe`],
+//! [`Table::latched_z`]).
+//!
 //! Units: mm on the trait, counts on the wire (counts per mm per axis from the rig file); times
 //! on the driver's [`Clock`](crate::devices::clock::Clock).
 
@@ -29,11 +35,14 @@ use crate::devices::drivers::canopen::settings::TableConfig;
 use crate::devices::traits::{DeviceError, DeviceName, Table};
 use crate::protocols::canopen::{
     next_controlword_towards_enabled, od, CanOpenMessage, Controlword, DriveState, Nmt, NmtCommand,
-    NodeId, SdoData, SdoRequest, SdoResponse, Statusword,
+    NodeId, SdoData, SdoRequest, SdoResponse, Statusword, TouchProbeFunction, TouchProbeStatus,
 };
 use crate::transports::{CanBus, TransportError};
 
 const AXES: [char; 3] = ['x', 'y', 'z'];
+
+/// The axis whose drive latches the contact height (its probe input wired to the panel).
+const Z: usize = 2;
 
 /// How often an SDO request is sent before its timeout counts: CAN loses a frame now and then
 /// (a bus error, an overrun in a busy adapter), and at a few per cent of frames lost one
@@ -405,6 +414,54 @@ impl<B: CanBus> CanOpenTable<B> {
         }
     }
 
+    /// Bring-up with `touch_probe = true`: the z drive's probe switched off (0x60B8 = 0) and
+    /// its status read back, so a drive without the touch probe objects is refused before
+    /// any contact, naming the rig file's key.
+    fn check_touch_probe(&mut self) -> Result<(), DeviceError> {
+        let node = self.nodes[Z].get();
+        let missing = |e: DeviceError| {
+            DeviceError::Config {
+            key: "table.touch_probe".into(),
+            reason: format!(
+                "true, but the z drive (node {node}) does not offer the CiA 402 touch probe (0x60B8/0x60B9): {e}; set touch_probe = false, or use a drive with the latch"
+            ),
+        }
+        };
+        self.write(
+            Z,
+            od::TOUCH_PROBE_FUNCTION,
+            SdoData::from_u16(TouchProbeFunction::OFF.0),
+        )
+        .map_err(|e| match e {
+            e @ DeviceError::SdoAbort { .. } => missing(e),
+            e => e,
+        })?;
+        let status = self.probe_status().map_err(|e| match e {
+            e @ DeviceError::SdoAbort { .. } => missing(e),
+            e => e,
+        })?;
+        if status.probe1_enabled() {
+            return Err(self.probe_protocol(
+                "0x60B9 still says probe 1 is enabled after it was switched off".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    fn probe_status(&mut self) -> Result<TouchProbeStatus, DeviceError> {
+        Ok(TouchProbeStatus(
+            self.read(Z, od::TOUCH_PROBE_STATUS)?.to_u32() as u16,
+        ))
+    }
+
+    fn probe_protocol(&self, detail: String) -> DeviceError {
+        DeviceError::Protocol {
+            device: DeviceName::Table,
+            request: format!("touch probe of the z drive (node {})", self.nodes[Z].get()),
+            detail,
+        }
+    }
+
     fn enable_drives(&mut self, timeout: Duration) -> Result<(), DeviceError> {
         let start = self.clock.now();
         for k in 0..3 {
@@ -538,6 +595,9 @@ impl<B: CanBus> Table for CanOpenTable<B> {
             self.write(k, od::PROFILE_ACCELERATION, SdoData::from_u32(a.max(1)))?;
             self.write(k, od::PROFILE_DECELERATION, SdoData::from_u32(d.max(1)))?;
         }
+        if self.cfg.touch_probe {
+            self.check_touch_probe()?;
+        }
         self.supervising = true;
         self.enable_drives(timeout)?;
         self.read_positions()?;
@@ -670,5 +730,46 @@ impl<B: CanBus> Table for CanOpenTable<B> {
 
     fn latency(&self) -> Duration {
         Duration::from_secs_f64(self.cfg.bus_latency_ms.max(0.0) / 1000.0)
+    }
+
+    /// Switches the z drive's probe 1 off (clearing a stored edge) and on again for the first
+    /// positive edge of its input, and checks 0x60B9 says enabled and nothing stored.
+    fn arm_touch_probe(&mut self, _timeout: Duration) -> Result<(), DeviceError> {
+        if !self.cfg.touch_probe {
+            return Err(DeviceError::Config {
+                key: "table.touch_probe".into(),
+                reason: "false: the rig file does not say the z drive's probe input is wired to the panel's touch output".into(),
+            });
+        }
+        self.write(
+            Z,
+            od::TOUCH_PROBE_FUNCTION,
+            SdoData::from_u16(TouchProbeFunction::OFF.0),
+        )?;
+        let armed = TouchProbeFunction::probe1_first_positive_edge();
+        self.write(Z, od::TOUCH_PROBE_FUNCTION, SdoData::from_u16(armed.0))?;
+        let status = self.probe_status()?;
+        if !status.probe1_enabled() || status.probe1_positive_stored() {
+            return Err(self.probe_protocol(format!(
+                "armed with 0x60B8 = {:#06x}, but 0x60B9 = {:#06x} (expected probe 1 enabled, no edge stored)",
+                armed.0, status.0
+            )));
+        }
+        Ok(())
+    }
+
+    fn latched_z(&mut self, _timeout: Duration) -> Result<Option<f64>, DeviceError> {
+        let status = self.probe_status()?;
+        if !status.probe1_enabled() {
+            return Err(self.probe_protocol(format!(
+                "0x60B9 = {:#06x}: probe 1 is switched off (was it armed?)",
+                status.0
+            )));
+        }
+        if !status.probe1_positive_stored() {
+            return Ok(None);
+        }
+        let counts = self.read(Z, od::TOUCH_PROBE_1_POSITIVE)?.to_i32();
+        Ok(Some(f64::from(counts) / self.cfg.counts_per_mm[Z]))
     }
 }

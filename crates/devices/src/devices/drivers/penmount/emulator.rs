@@ -12,20 +12,37 @@
 //! latency later too.
 //! Faults: a missed touch (no packets for the next contact), garbage bytes before the next
 //! packet, a corrupted checksum on the next packet.
+//!
+//! The controller's touch output (a switching output that is on while the pin touches, wired
+//! to the z drive's touch-probe input where the rig latches the contact height) rises at each
+//! contact's start: the emulator records that edge with the table's position at the exact
+//! contact ([`TableTruth::touch_began`](crate::devices::emulators::TableTruth::touch_began)),
+//! the height found from the world's geometry so that it does not depend on when the contact
+//! was looked for. A missed touch raises no edge either.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::Duration;
 
+use nalgebra::Vector3;
+
 use crate::devices::drivers::penmount::settings::PanelConfig;
 use crate::devices::emulators::faults::PanelFaultHandle;
 use crate::devices::emulators::physics::SharedPhysics;
-use crate::devices::emulators::{lock, ByteEmulator, SharedTable};
+use crate::devices::emulators::{lock, ByteEmulator, SharedTable, TouchEdge};
 use crate::protocols::penmount::PenMountPacket;
 use rigcal_core::rig::TablePanel;
 
 /// Scan step when looking for a change of contact.
 const SCAN_STEP: Duration = Duration::from_millis(1);
+
+/// How far before a contact's found start the exact contact height is bracketed: twice the
+/// 1 µs to which [`PanelEmulator::find_change`] finds it.
+const EDGE_BRACKET: Duration = Duration::from_micros(2);
+
+/// Bisection steps for the exact contact height: 60 halve a bracket of a few nm to below a
+/// float's resolution.
+const BISECTIONS: usize = 60;
 
 /// The emulated controller.
 #[derive(Debug)]
@@ -101,6 +118,45 @@ impl PanelEmulator {
         let cx = cx.clamp(0.0, f64::from(self.counts[0].saturating_sub(1)).min(511.0)) as u16;
         let cy = cy.clamp(0.0, f64::from(self.counts[1].saturating_sub(1)).min(255.0)) as u16;
         Some((cx, cy))
+    }
+
+    /// The touch output's edge for a contact that `find_change` found beginning at `t`: the
+    /// table's x and y then, and the exact contact height — where the true panel centre, at
+    /// that x and y, rises to the true pin tip — by bisection in z between the table's heights
+    /// a few microseconds before `t` and at `t` (to a float's resolution, far below a drive
+    /// count). Where the table did not rise into the pin there (the pin came down, or the
+    /// contact's start was bracketed otherwise), the table's position at `t`.
+    fn touch_edge(&self, t: Duration) -> TouchEdge {
+        let (before, at) = {
+            let table = lock(&self.table);
+            (
+                table.position(t.saturating_sub(EDGE_BRACKET)),
+                table.position(t),
+            )
+        };
+        let table_mm = [at.x, at.y, at.z];
+        let Some(pin) = lock(&self.physics).pin(t) else {
+            return TouchEdge { at: t, table_mm };
+        };
+        let physics = lock(&self.physics);
+        let touching =
+            |z: f64| physics.panel_centre_world(Vector3::new(at.x, at.y, z)).z >= pin.tip_mm.z;
+        let (mut below, mut above) = (before.z, at.z);
+        if !(below < above && !touching(below) && touching(above)) {
+            return TouchEdge { at: t, table_mm };
+        }
+        for _ in 0..BISECTIONS {
+            let mid = 0.5 * (below + above);
+            if touching(mid) {
+                above = mid;
+            } else {
+                below = mid;
+            }
+        }
+        TouchEdge {
+            at: t,
+            table_mm: [at.x, at.y, above],
+        }
     }
 
     /// The first time in (from, to] at which touching differs from `touching`.
@@ -179,6 +235,10 @@ impl PanelEmulator {
                             f.last_contact_at = Some(t);
                             f.last_contact_table_z = Some(z);
                         }
+                        if !self.suppressed {
+                            let edge = self.touch_edge(t);
+                            lock(&self.table).touch_began(edge);
+                        }
                         self.contact = Some(c);
                         self.packet(t + lat, true, c);
                         self.next_sample = Some(t + self.period());
@@ -223,5 +283,87 @@ impl ByteEmulator for PanelEmulator {
             .find_change(now, horizon, self.contact.is_some())
             .map(|t| t + self.latency());
         [queued, report, change].into_iter().flatten().min()
+    }
+}
+
+#[cfg(test)]
+mod touch_output {
+    use super::*;
+    use crate::devices::emulators::physics::NominalPhysics;
+    use crate::devices::emulators::{Profile, TableTruth};
+    use rigcal_core::kinematics::{ErrorParams, Robot};
+    use rigcal_core::rig::{Instrument, Rig};
+    use std::sync::Mutex;
+
+    fn rig() -> Rig {
+        let path = std::path::Path::new(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../rigs/rv-m2.toml"
+        ));
+        Rig::load(path).unwrap()
+    }
+
+    /// The touch output's edge when the table rises into the pin from `t0` at `speed` (mm/s),
+    /// the panel polled every `poll`.
+    fn edge(rig: &Rig, t0: Duration, speed: f64, poll: Duration) -> (TouchEdge, f64) {
+        let Instrument::TablePanel(tp) = &rig.instrument else {
+            panic!("a table rig")
+        };
+        let q: Vec<f64> = [20.0f64, 45.0, -100.0, 0.0, 0.0]
+            .iter()
+            .map(|d| d.to_radians())
+            .collect();
+        let physics = NominalPhysics::nominal(rig).shared();
+        lock(&physics).arm_commanded(&q, Duration::ZERO);
+        let tip = rig
+            .chain
+            .position(&q, &ErrorParams::zeros(rig.chain.layout()));
+        let at_tip = tip - tp.table_to_world_mm;
+        let table: SharedTable = Arc::new(Mutex::new(TableTruth::at([0.0; 3])));
+        lock(&table).axes = [
+            Profile::still(at_tip.x - 20.0),
+            Profile::still(at_tip.y + 10.0),
+            Profile::new(t0, at_tip.z - 0.5, at_tip.z + 0.5, speed, 1e6, 1e6),
+        ];
+        let cfg = PanelConfig::default();
+        let mut panel = PanelEmulator::new(tp, &cfg, physics, Arc::clone(&table));
+        let mut now = Duration::ZERO;
+        while now < t0 + Duration::from_secs(5) {
+            now += poll;
+            panel.output(now);
+            if let Some(e) = lock(&table).first_touch(Duration::ZERO, now) {
+                return (e, at_tip.z);
+            }
+        }
+        panic!("no touch")
+    }
+
+    #[test]
+    fn the_touch_output_carries_the_exact_contact_height_whatever_the_speed_or_polling() {
+        let rig = rig();
+        // The contact is where the nominal panel centre (table + registration) reaches the
+        // nominal tip: at the table height `contact`, whatever the approach's timing.
+        let runs = [
+            (Duration::from_millis(3), 0.42, Duration::from_millis(1)),
+            (
+                Duration::from_millis(1234),
+                0.42,
+                Duration::from_micros(700),
+            ),
+            (Duration::from_millis(50), 2.9, Duration::from_millis(3)),
+            (Duration::from_millis(7), 30.0, Duration::from_millis(2)),
+        ];
+        for (t0, speed, poll) in runs {
+            let (e, contact) = edge(&rig, t0, speed, poll);
+            assert!(
+                (e.table_mm[2] - contact).abs() < 1e-9,
+                "{speed} mm/s from {t0:?}: {} against {contact}",
+                e.table_mm[2]
+            );
+            // The edge's moment, within the 1 µs the contact's start is found to: 0.5 mm at
+            // `speed` after `t0`, plus the half of the (1e6 mm/s²) acceleration's time lost.
+            let expected = t0.as_secs_f64() + 0.5 / speed + speed / (2.0 * 1e6);
+            assert!((e.at.as_secs_f64() - expected).abs() < 1.5e-6, "{e:?}");
+        }
     }
 }

@@ -1,0 +1,223 @@
+//! `rigcal diagnose` on real-shaped recordings (issue 35, item 5): the generator of
+//! `tests/common/shapes.rs` roughened by `tests/common/real_shaped.rs` — pose-dependent
+//! repeatability, a smooth un-modelled residual at the noise floor, gross rows, few poses
+//! (20–60), and held-out sessions with moved frames.
+//!
+//! Targets: a null names no library effect in ≥ 99 %; a library effect at 1–5× the floor is
+//! named exactly (that effect and no other; the roughening's smooth residual may be reported
+//! unexplained) in ≥ 95 %; an out-of-library shape names no library effect in ≥ 95 %.
+//!
+//! `rates` (ignored; `RIGCAL_RATE_SEEDS` seeds per library kind and out-of-library class,
+//! default 20, nulls 5× that per realism class; `RIGCAL_REALISM=rough|few|sessions|few-no-gross`
+//! runs one class) prints the table of docs/diagnosis.md;
+//! `a_fast_subset_meets_the_targets` runs a few of each in CI. Seeds: the rates use 5 000 + s,
+//! the fast subset 9 000 + s; the held-out rule's constants were chosen before and are not
+//! tuned on either. Units: mm.
+
+mod common;
+
+use common::real_shaped::{roughen_with, Realism};
+use common::shapes::*;
+use rigcal_core::rig::FrameMode;
+use rigcal_model::diagnosis::{diagnose, Options, Report};
+
+/// What a recording of a realism class was, and what the diagnosis said.
+struct Outcome {
+    /// The library names the report gives.
+    named: Vec<String>,
+    /// Kept effects a held-out session rose for (RMS with > without, however little): what the
+    /// earlier rule (any rise refuses) would have refused.
+    rose_on_a_session: usize,
+    report: Report,
+}
+
+fn diagnose_case(mut c: Case, realism: Realism, seed: u64) -> Outcome {
+    let sessions = realism.sessions(&c, seed);
+    roughen_with(&mut c.recording, seed, realism.outliers());
+    let mut rig = c.scenario.rig.clone();
+    if !sessions.is_empty() {
+        // An outside instrument whose frame moves between sessions is not registered: its
+        // frame is fitted (the generator's rig fixes it, as a registered panel is).
+        rig.calibration.measurement_frame = FrameMode::Free;
+    }
+    let report = diagnose(
+        &rig,
+        &c.recording,
+        &Options {
+            sessions,
+            ..Default::default()
+        },
+    )
+    .expect("diagnose");
+    let rose_on_a_session = report
+        .effects
+        .iter()
+        .filter(|e| {
+            e.heldout_gain
+                .as_ref()
+                .and_then(|g| g.sessions_gain_mm)
+                .is_some_and(|g| g < 0.0)
+        })
+        .count();
+    Outcome {
+        named: library_names(&report),
+        rose_on_a_session,
+        report,
+    }
+}
+
+/// A null recording of the class: names no library effect.
+fn null_ok(realism: Realism, seed: u64) -> bool {
+    let c = null_n(seed, NOISE_MM, realism.poses(seed));
+    let o = diagnose_case(c, realism, seed);
+    if !o.named.is_empty() {
+        eprintln!(
+            "{} null seed {seed}: {:?}\n{}",
+            realism.name(),
+            o.named,
+            o.report.text()
+        );
+    }
+    o.named.is_empty()
+}
+
+/// A library case at `size` × the floor: named exactly. Returns (ok, rose on a session).
+fn library_ok(realism: Realism, case: &LibraryCase, seed: u64, size: f64) -> (bool, usize) {
+    let c = in_library_n(case, seed, Some(size), realism.poses(seed));
+    let label = c.label.clone();
+    let o = diagnose_case(c, realism, seed);
+    let ok = o.named == vec![case.name.to_string()];
+    if !ok {
+        eprintln!(
+            "{} {label} seed {seed} (×{size:.1} the floor): {:?}\n{}",
+            realism.name(),
+            o.named,
+            o.report.text()
+        );
+    }
+    (ok, o.rose_on_a_session)
+}
+
+/// An out-of-library case at `size` × the floor: names no library effect.
+fn shape_ok(realism: Realism, class: Class, seed: u64, size: f64) -> bool {
+    let c = out_of_library_n(class, seed, size, realism.poses(seed));
+    let label = c.label.clone();
+    let o = diagnose_case(c, realism, seed);
+    if !o.named.is_empty() {
+        eprintln!(
+            "{} {label} seed {seed}: {:?}\n{}",
+            realism.name(),
+            o.named,
+            o.report.text()
+        );
+    }
+    o.named.is_empty()
+}
+
+/// The out-of-library classes a realism class can carry: a deformation applied after
+/// recording is not in the scenario's world, so held-out sessions could not show it.
+fn shape_classes(realism: Realism) -> &'static [Class] {
+    match realism {
+        Realism::Sessions => &[Class::Dent, Class::Coupling, Class::Harmonic],
+        _ => &Class::ALL,
+    }
+}
+
+/// The size of seed `s` of `seeds`, spread over 1–5× the floor.
+fn size_of(s: u64, seeds: u64) -> f64 {
+    1.0 + 4.0 * s as f64 / (seeds.max(2) - 1) as f64
+}
+
+#[test]
+fn a_fast_subset_meets_the_targets() {
+    for realism in [Realism::Rough, Realism::Sessions] {
+        for s in 0..2 {
+            assert!(null_ok(realism, 9_000 + s), "{} null {s}", realism.name());
+        }
+    }
+    for s in 0..4 {
+        assert!(null_ok(Realism::FewPoses, 9_100 + s), "few-poses null {s}");
+    }
+    let cases = library_cases();
+    for (k, name) in ["backlash:3", "transmission_error:1"].iter().enumerate() {
+        let case = cases.iter().find(|c| c.name == *name).expect("case");
+        for realism in [Realism::Rough, Realism::Sessions] {
+            let (ok, _) = library_ok(realism, case, 9_200 + k as u64, 3.0);
+            assert!(ok, "{} {name}", realism.name());
+        }
+    }
+    for (k, class) in [Class::Dent, Class::Coupling].into_iter().enumerate() {
+        for realism in [Realism::Rough, Realism::Sessions] {
+            assert!(
+                shape_ok(realism, class, 9_300 + k as u64, 3.0),
+                "{} {}",
+                realism.name(),
+                class.name()
+            );
+        }
+    }
+}
+
+/// The rate table of docs/diagnosis.md (run with `--ignored --nocapture`).
+#[test]
+#[ignore]
+fn rates() {
+    let seeds: u64 = std::env::var("RIGCAL_RATE_SEEDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    let mut failures = Vec::new();
+    let mut rows = Vec::new();
+    let only = std::env::var("RIGCAL_REALISM").ok();
+    for realism in Realism::ALL {
+        if only.as_deref().is_some_and(|k| k != realism.key()) {
+            continue;
+        }
+        let nulls = 5 * seeds;
+        let null_pass = (0..nulls).filter(|&s| null_ok(realism, 5_000 + s)).count() as u64;
+        let (mut lib_pass, mut lib_n, mut rose) = (0u64, 0u64, 0usize);
+        let mut per_kind = Vec::new();
+        for case in library_cases() {
+            let mut k_pass = 0;
+            for s in 0..seeds {
+                let (ok, r) = library_ok(realism, &case, 5_000 + s, size_of(s, seeds));
+                k_pass += u64::from(ok);
+                rose += r;
+            }
+            per_kind.push(format!("{} {k_pass}/{seeds}", case.name));
+            lib_pass += k_pass;
+            lib_n += seeds;
+        }
+        let (mut shape_pass, mut shape_n) = (0u64, 0u64);
+        for &class in shape_classes(realism) {
+            for s in 0..seeds {
+                shape_pass += u64::from(shape_ok(realism, class, 5_000 + s, size_of(s, seeds)));
+                shape_n += 1;
+            }
+        }
+        let row = format!(
+            "| {} | {null_pass}/{nulls} | {lib_pass}/{lib_n} ({}) | {shape_pass}/{shape_n} | {rose} |",
+            realism.name(),
+            per_kind.join(", ")
+        );
+        eprintln!("{row}");
+        rows.push(row);
+        if realism == Realism::FewPosesNoGross {
+            continue;
+        }
+        if (null_pass as f64) < 0.99 * nulls as f64 {
+            failures.push(format!("{} nulls {null_pass}/{nulls}", realism.name()));
+        }
+        if (lib_pass as f64) < 0.95 * lib_n as f64 {
+            failures.push(format!("{} library {lib_pass}/{lib_n}", realism.name()));
+        }
+        if (shape_pass as f64) < 0.95 * shape_n as f64 {
+            failures.push(format!("{} shapes {shape_pass}/{shape_n}", realism.name()));
+        }
+    }
+    eprintln!("| recordings | nulls naming nothing | library effects at 1–5× the floor named exactly | out-of-library shapes naming no library effect | named effects a held-out session rose for |\n|---|---|---|---|---|");
+    for r in &rows {
+        eprintln!("{r}");
+    }
+    assert!(failures.is_empty(), "{failures:#?}");
+}
