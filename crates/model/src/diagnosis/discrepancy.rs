@@ -54,7 +54,8 @@ pub fn describe(
     let mut model = DiscrepancyModel::default();
     for s in &sel.shapes {
         let k = s.x.ncols();
-        let beta: Vec<f64> = (col..col + k).map(|i| inp.refit.fit.solution[i]).collect();
+        let fitted: Vec<f64> = (col..col + k).map(|i| inp.refit.fit.solution[i]).collect();
+        let beta = seen_coefficients(&s.x, &fitted);
         let cov = DMatrix::from_fn(k, k, |i, j| {
             inp.refit.fit.normal_inverse[(col + i, col + j)] * inp.refit.s2
         });
@@ -92,6 +93,38 @@ pub fn describe(
         shapes,
         report: Some(report),
     }
+}
+
+/// Below this share of the largest eigenvalue of XᵀX (a singular value below 1e-6 of the
+/// largest), a direction of a shape's coefficients is not seen by the recording.
+const SEEN_TOL: f64 = 1e-12;
+
+/// The part of a shape's fitted coefficients `beta` the recording sees: its projection on the
+/// eigenvectors of XᵀX (X the shape's columns) above [`SEEN_TOL`]. A spline interval no pose
+/// falls in (a grid recording's joint, e.g. the UR10's Series A has one joint 1 angle in
+/// [−105°, −65°]) leaves coefficients the fit fixes by rounding alone: astronomically large
+/// (a "peak" of 10⁴¹° was printed), cancelling at every pose, and absurd wherever the term is
+/// evaluated between them (the description's grid, compensation, the twin). Projected out, the
+/// term is unchanged at the recording's poses (to 1e-6 of its largest singular direction) and
+/// stays near zero where the recording says nothing.
+fn seen_coefficients(x: &DMatrix<f64>, beta: &[f64]) -> Vec<f64> {
+    let b = DVector::from_column_slice(beta);
+    if x.ncols() != b.len() || x.nrows() == 0 {
+        return beta.to_vec();
+    }
+    let eig = x.tr_mul(x).symmetric_eigen();
+    let largest = eig.eigenvalues.max();
+    if !(largest.is_finite() && largest > 0.0) {
+        return beta.to_vec();
+    }
+    let mut seen = DVector::zeros(b.len());
+    for (i, &l) in eig.eigenvalues.iter().enumerate() {
+        if l > SEEN_TOL * largest {
+            let v = eig.eigenvectors.column(i);
+            seen += v * v.dot(&b);
+        }
+    }
+    seen.as_slice().to_vec()
 }
 
 /// Points on the grid of a driving variable's range.
@@ -402,6 +435,29 @@ mod tests {
         (0..GRID)
             .map(|i| lo + (hi - lo) * i as f64 / (GRID - 1) as f64)
             .collect()
+    }
+
+    #[test]
+    fn coefficients_no_pose_sees_are_dropped_and_the_rest_kept() {
+        // Columns: a constant, a ramp, and a basis function no row reaches (a spline interval
+        // without poses), whose coefficient rounding made astronomically large.
+        let x = DMatrix::from_fn(9, 3, |r, c| match c {
+            0 => 1.0,
+            1 => r as f64 / 8.0,
+            _ => 0.0,
+        });
+        let seen = seen_coefficients(&x, &[2.0, -3.0, 4.5e41]);
+        assert!(
+            (seen[0] - 2.0).abs() < 1e-9 && (seen[1] + 3.0).abs() < 1e-9,
+            "{seen:?}"
+        );
+        assert!(seen[2].abs() < 1e-9, "{seen:?}");
+        // A well-seen fit is returned as it is.
+        let seen = seen_coefficients(&x.columns(0, 2).into_owned(), &[2.0, -3.0]);
+        assert!(
+            (seen[0] - 2.0).abs() < 1e-9 && (seen[1] + 3.0).abs() < 1e-9,
+            "{seen:?}"
+        );
     }
 
     #[test]
