@@ -181,10 +181,19 @@ fn diagnosis_names_compliance_and_it_carries() {
     // Measured: training 10.95 → 3.63 mm; 0701 held out 11.89 → 4.15 mm (the July days share
     // the compliance); 0805 14.44 → 15.46 mm (a month later it does not carry).
     assert!(ph.training_physics < 0.6 * ph.training_geometry);
-    let (_, g0701, p0701) = &ph.heldout[0];
-    assert!(*p0701 < 0.6 * g0701, "{p0701} vs {g0701}");
-    let (_, g0805, p0805) = &ph.heldout[1];
-    assert!(*p0805 > g0805 - 1.0, "{p0805} vs {g0805}");
+    let (g0701, p0701) = (ph.heldout[0].1.rms_mm, ph.heldout[0].2.rms_mm);
+    assert!(p0701 < 0.6 * g0701, "{p0701} vs {g0701}");
+    let (g0805, p0805) = (ph.heldout[1].1.rms_mm, ph.heldout[1].2.rms_mm);
+    assert!(p0805 > g0805 - 1.0, "{p0805} vs {g0805}");
+    // Mean, RMS and max, each of one held-out session's errors: mean ≤ RMS ≤ max.
+    for (name, g, p) in &ph.heldout {
+        for s in [g, p] {
+            assert!(
+                s.mean_mm <= s.rms_mm + 1e-12 && s.rms_mm <= s.max_mm + 1e-12,
+                "{name}: {s:?}"
+            );
+        }
+    }
 }
 
 #[test]

@@ -272,8 +272,12 @@ pub fn physics_sessions_text(
         ph.training_geometry,
         ph.training_physics
     );
-    for (name, geometry, physics) in &ph.heldout {
-        let _ = writeln!(s, "  held-out session {name}: RMS {geometry:.4} mm geometry only, {physics:.4} mm with the effects");
+    for (name, g, p) in &ph.heldout {
+        let _ = writeln!(
+            s,
+            "  held-out session {name}: mean / RMS / max {:.4} / {:.4} / {:.4} mm geometry only, {:.4} / {:.4} / {:.4} mm with the effects",
+            g.mean_mm, g.rms_mm, g.max_mm, p.mean_mm, p.rms_mm, p.max_mm
+        );
     }
     Ok(s)
 }

@@ -352,8 +352,9 @@ pub struct PhysicsHeldOut {
     pub training_geometry: f64,
     /// Training RMS, geometry and the effects (mm).
     pub training_physics: f64,
-    /// Per held-out session: (name, RMS geometry only, RMS with the effects), frame refitted.
-    pub heldout: Vec<(String, f64, f64)>,
+    /// Per held-out session: (name, geometry only, with the effects), each the mean, RMS and
+    /// max of the 3-D error (mm) with the frame refitted.
+    pub heldout: Vec<(String, ResidualStats, ResidualStats)>,
 }
 
 /// Training and held-out RMS with the diagnosis' named `effects` (from a diagnosis of
@@ -410,16 +411,16 @@ pub fn physics_heldout(
                 p: o.p - s,
             })
             .collect();
-        let refit_rms = |obs: &[Observation], params: &ErrorParams| {
+        let refit_stats = |obs: &[Observation], params: &ErrorParams| {
             refit_frame(chain, params, obs, per)
-                .map(|(r, _)| r.after.rms_mm)
+                .map(|(r, _)| r.after)
                 .map_err(|source| SessionError::Refit {
                     name: h.name.clone(),
                     source,
                 })
         };
-        let geometry = refit_rms(&d.obs, &std.data.e)?;
-        let physics = refit_rms(&corrected, &e)?;
+        let geometry = refit_stats(&d.obs, &std.data.e)?;
+        let physics = refit_stats(&corrected, &e)?;
         heldout.push((h.name.clone(), geometry, physics));
     }
     Ok(PhysicsHeldOut {
