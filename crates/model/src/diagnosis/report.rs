@@ -183,6 +183,10 @@ pub struct ShapeReport {
     /// `deg`, `mm` or `s`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub interval_unit: Option<String>,
+    /// How many measurements lie in `interval`, for a localised or smooth joint-space shape:
+    /// a shape a handful of poses carry may be no more than those poses' own errors.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub measurements_in_interval: Option<usize>,
     /// Where it is largest in the workspace, for a position shape.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub region: Option<Region>,
