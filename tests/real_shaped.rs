@@ -9,10 +9,11 @@
 //!
 //! `rates` (ignored; `RIGCAL_RATE_SEEDS` seeds per library kind and out-of-library class,
 //! default 20, nulls 5× that per realism class; `RIGCAL_REALISM=rough|few|sessions|few-no-gross`
-//! runs one class) prints the table of docs/diagnosis.md;
+//! runs one class; `RIGCAL_RATE_SEED_BASE` its first seed, default 5 000) prints the table of
+//! docs/diagnosis.md;
 //! `a_fast_subset_meets_the_targets` runs a few of each in CI. Seeds: the rates use 5 000 + s,
-//! the fast subset 9 000 + s; the held-out rule's constants were chosen before and are not
-//! tuned on either. Units: mm.
+//! the fast subset 9 000 + s. `RISE_Z` was chosen on the sessions class at 5 000–5 019; that
+//! class re-run from 6 000 (docs/diagnosis.md) gives the same figures. Units: mm.
 
 mod common;
 
@@ -169,18 +170,24 @@ fn rates() {
     let mut failures = Vec::new();
     let mut rows = Vec::new();
     let only = std::env::var("RIGCAL_REALISM").ok();
+    // The first seed: 5 000 for the table of docs/diagnosis.md; another base re-runs it on
+    // seeds no constant was chosen on.
+    let base: u64 = std::env::var("RIGCAL_RATE_SEED_BASE")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(5_000);
     for realism in Realism::ALL {
         if only.as_deref().is_some_and(|k| k != realism.key()) {
             continue;
         }
         let nulls = 5 * seeds;
-        let null_pass = (0..nulls).filter(|&s| null_ok(realism, 5_000 + s)).count() as u64;
+        let null_pass = (0..nulls).filter(|&s| null_ok(realism, base + s)).count() as u64;
         let (mut lib_pass, mut lib_n, mut rose) = (0u64, 0u64, 0usize);
         let mut per_kind = Vec::new();
         for case in library_cases() {
             let mut k_pass = 0;
             for s in 0..seeds {
-                let (ok, r) = library_ok(realism, &case, 5_000 + s, size_of(s, seeds));
+                let (ok, r) = library_ok(realism, &case, base + s, size_of(s, seeds));
                 k_pass += u64::from(ok);
                 rose += r;
             }
@@ -191,7 +198,7 @@ fn rates() {
         let (mut shape_pass, mut shape_n) = (0u64, 0u64);
         for &class in shape_classes(realism) {
             for s in 0..seeds {
-                shape_pass += u64::from(shape_ok(realism, class, 5_000 + s, size_of(s, seeds)));
+                shape_pass += u64::from(shape_ok(realism, class, base + s, size_of(s, seeds)));
                 shape_n += 1;
             }
         }
