@@ -204,22 +204,19 @@ fn the_library_pipeline_returns_the_planted_rows_with_their_file_lines() {
 }
 
 #[test]
-fn more_outliers_than_the_cap_remove_nothing_and_say_so() {
+fn gross_rows_past_five_percent_are_removed_and_named() {
     let rig = Rig::load(Path::new(RIG)).expect("rig");
-    // 8 of 100 rows off by 3–6 mm: more than 5 %.
+    let options = rigcal_model::diagnosis::outliers::identify_options();
+    // 8 of 100 rows off by 3–6 mm: more than 5 %, but each gross beyond doubt (far past the
+    // robust scale of the rest): removed and named.
     let planted: Vec<(usize, f64)> = (0..8).map(|k| (5 + 12 * k, 3.0 + k as f64 / 2.0)).collect();
-    let rec = with_planted(4, &planted);
-    let id = identify(
-        &rig,
-        &rec,
-        Level::Full,
-        &rigcal_model::diagnosis::outliers::identify_options(),
-    )
-    .expect("identify");
-    assert!(id.outliers.is_empty());
-    assert_eq!(id.fit.after.n, 100);
-    let warning = id.outlier_warning.expect("a warning");
-    assert!(warning.contains("more than 5 %"), "{warning}");
+    let id = identify(&rig, &with_planted(4, &planted), Level::Full, &options).expect("identify");
+    let mut found: Vec<u64> = id.outliers.iter().map(|o| o.seq).collect();
+    found.sort_unstable();
+    let expected: Vec<u64> = planted.iter().map(|&(i, _)| i as u64 + 1).collect();
+    assert_eq!(found, expected);
+    assert!(id.outlier_warning.is_none());
+    assert_eq!(id.fit.after.n, 92);
 }
 
 #[test]

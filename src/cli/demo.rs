@@ -1,9 +1,10 @@
 //! `rigcal demo`: the whole job on simulated devices at seed 000's settings
 //! ([`rigcal_paper::demo`], which says what it runs): the flags, the progress and the printing.
 
-use super::options::{parse_seeds, SeedList, TrainingArg};
+use super::options::{parse_seeds, InitArg, SeedList, TrainingArg};
 use anyhow::{Context, Result};
 use rigcal_paper::demo::{DemoEvent, DemoOptions, PathSet};
+use rigcal_paper::extras::Extras;
 use rigcal_paper::preset::SEED_000;
 use rigcal_paper::sec7::Sec7Stage;
 use rigcal_paper::seeds::{SweepEvent, SweepOptions, SweepPart};
@@ -46,6 +47,28 @@ pub struct Args {
     /// estimate around its parent's CEPs (docs/seeds.md: the departure's measured effect).
     #[arg(long)]
     plain_least_squares: bool,
+    /// Where every FCMAC's association cells start before training: each at its region's
+    /// CEPs (rigcal's default), all at the conventional CEPs, or all at zero (the paper does
+    /// not say; docs/paper-reproduction.md measures the choice).
+    #[arg(long, value_enum, default_value_t = InitArg::Ceps)]
+    fcmac_init: InitArg,
+    /// Section 6 with Gaussian measurement noise whose mean length is this percentage of the
+    /// mean uncalibrated error on the Fig. 6 path (the paper's further run: about 3); the
+    /// evaluation stays against the true arm [default: no noise, the scenario's].
+    #[arg(long, value_name = "PERCENT", value_parser = parse_percent)]
+    noise_percent: Option<f64>,
+    /// With --seeds: train a CMAC and an FCMAC on the same CEPs of each seed's Fig. 6 division
+    /// (the demo's FCMAC also learns the measured positions, which a CMAC cannot) and report
+    /// both along the Fig. 6 path and their CEP jumps; into extras.md.
+    #[arg(long, requires = "seeds", conflicts_with = "rig")]
+    equal_training: bool,
+    /// With --seeds: evaluate each seed's Fig. 6 and Fig. 7 models along ten joint-space
+    /// lines drawn by a fixed rule (seed 32, inside the measurable workspace; the paper's
+    /// "several different paths"), or with --rig measure section 7's model along ten
+    /// Cartesian lines by the rig (each a path session of its own), and report the
+    /// distribution over paths × seeds; into extras.md and ten-paths.csv.
+    #[arg(long, requires = "seeds")]
+    ten_paths: bool,
     /// Run section 6 alone at each of these seeds (`1-20`, or `3,8,10`) and print, per claim,
     /// the pass rate, the median and the worst seed (docs/seeds.md); writes `seeds.md` and
     /// `seeds.csv` to --out (default out/seeds then).
@@ -88,13 +111,20 @@ pub fn run(a: Args) -> Result<()> {
             fcmac_training: a.fcmac_training.into(),
             confidence_z: a.confidence_z,
             plain_least_squares: a.plain_least_squares,
+            fcmac_init: a.fcmac_init.into(),
+            noise_share: a.noise_percent.map(|p| p / 100.0),
+        };
+        let extras = Extras {
+            equal_training: a.equal_training,
+            ten_paths: a.ten_paths,
+            rig: a.rig,
         };
         let part = if a.rig {
             SweepPart::Section7
         } else {
             SweepPart::Section6
         };
-        return sweep(demo, seeds, a.threads, a.tuning_paths, part);
+        return sweep(demo, seeds, a.threads, a.tuning_paths, part, extras);
     }
     let opts = DemoOptions {
         out: a.out,
@@ -105,6 +135,8 @@ pub fn run(a: Args) -> Result<()> {
         fcmac_training: a.fcmac_training.into(),
         confidence_z: a.confidence_z,
         plain_least_squares: a.plain_least_squares,
+        fcmac_init: a.fcmac_init.into(),
+        noise_share: a.noise_percent.map(|p| p / 100.0),
     };
     rigcal_paper::demo::run(&opts, &mut |event| match event {
         DemoEvent::Text(text) => print!("{text}"),
@@ -127,6 +159,7 @@ fn sweep(
     threads: usize,
     tuning: bool,
     part: SweepPart,
+    extras: Extras,
 ) -> Result<()> {
     let opts = SweepOptions {
         paths: if tuning {
@@ -173,5 +206,30 @@ fn sweep(
         std::fs::write(&file, body).with_context(|| format!("writing {}", file.display()))?;
     }
     eprintln!("table written to {}", out.join("seeds.md").display());
+    if extras != Extras::default() {
+        eprintln!("the extras on every seed's models (equal training, ten paths)");
+        let t = rigcal_paper::extras::measure(&opts.demo, &opts.seeds, extras)?;
+        let text = t.text();
+        print!("\n{text}");
+        let [md, csv] = rigcal_paper::extras::files(&out);
+        std::fs::write(&md, text).with_context(|| format!("writing {}", md.display()))?;
+        if extras.ten_paths {
+            std::fs::write(&csv, t.paths_csv())
+                .with_context(|| format!("writing {}", csv.display()))?;
+        }
+        eprintln!("extras written to {}", md.display());
+    }
     Ok(())
+}
+
+/// A percentage from 0 to 100.
+fn parse_percent(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("{s:?} is not a number: give a percentage such as 3"))?;
+    if (0.0..=100.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a percentage from 0 to 100"))
+    }
 }

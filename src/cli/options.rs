@@ -4,7 +4,7 @@
 
 use rigcal_calibration::{CalibrationOptions, NeuralOptions};
 use rigcal_model::division::{Selection, Space};
-use rigcal_model::learners::{FcmacTraining, LearnerKind, LearnerSettings};
+use rigcal_model::learners::{FcmacInit, FcmacTraining, LearnerKind, LearnerSettings};
 use rigcal_paper::preset::SEED_000 as PAPER;
 
 /// A library enum on the command line: the same variants, with the help `--help` shows.
@@ -88,6 +88,19 @@ value_enum! {
     }
 }
 
+value_enum! {
+    /// Where the FCMAC's association cells start before training (seed 000 does not say).
+    InitArg => FcmacInit {
+        /// Each cell at the CEPs of the region at its centre, an unmeasurable region's borrowed
+        /// ones included (rigcal's default).
+        Ceps,
+        /// Every cell at the conventional calibration's CEPs.
+        Conventional,
+        /// Every cell at zero (Albus's usual start; cells no pattern reaches give the nominal arm).
+        Zero,
+    }
+}
+
 args! {
     /// The settings every calibrating command shares ([`CalibrationOptions`] less the demanded
     /// accuracy, the learner and the unmeasurable point, which are each command's own).
@@ -161,6 +174,10 @@ args! {
         /// measured; see `learners::positions`).
         #[arg(long = "fcmac-training", value_enum, default_value_t = TrainingArg::Positions)]
         training: TrainingArg,
+        /// Where the FCMAC's association cells start before training (seed 000 does not say;
+        /// docs/paper-reproduction.md measures the choice).
+        #[arg(long = "fcmac-init", value_enum, default_value_t = InitArg::Ceps)]
+        init: InitArg,
     }
 }
 

@@ -11,7 +11,7 @@ use rigcal_model::report::{PathResult, PathSpec};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// One method along one path.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -238,6 +238,103 @@ pub fn evaluate_files(
         figures.push(f);
     }
     Ok((figures, text))
+}
+
+/// The CEPs of every model of the model file at `model` along `path`, as each model gives
+/// them at the path's nominal joints (no compensation, no truth: what seed 000's Fig. 10 e–g
+/// shows for the rig's path), conventional first; each result's `traces` holds the CEPs named
+/// in `trace` (file units: mm and degrees) and its `errors` are empty.
+pub fn cep_traces(
+    model: &Path,
+    path: &PathSpec,
+    trace: &[String],
+) -> Result<(Vec<PathResult>, Vec<TracedCep>), CalibrationError> {
+    let loaded = ModelFile::load(model)?;
+    let traced = traced_ceps(&loaded.rig, trace)?;
+    let layout = rigcal_core::kinematics::Robot::layout(&loaded.rig.chain);
+    let index: Vec<usize> = traced
+        .iter()
+        .filter_map(|t| layout.find(&t.name).and_then(|id| layout.index_of(id)))
+        .collect();
+    let mut models = loaded.file.error_models(&loaded.rig, model)?;
+    // Conventional first, as `rigcal evaluate` lists them.
+    models.reverse();
+    let results = models
+        .iter()
+        .map(|(name, m)| {
+            let mut traces = vec![Vec::with_capacity(path.points.len()); index.len()];
+            for q in &path.points {
+                let e = m.params_at(q);
+                for (k, &i) in index.iter().enumerate() {
+                    traces[k].push(layout.ids()[i].kind.to_file_units(e.get(i)));
+                }
+            }
+            PathResult {
+                model: name.clone(),
+                errors: Vec::new(),
+                traces,
+                failures: 0,
+            }
+        })
+        .collect();
+    Ok((results, traced))
+}
+
+/// The files [`write_cep_traces`] wrote.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CepTraceFiles {
+    /// One panel per traced CEP, one series per model (SVG).
+    pub svg: PathBuf,
+    /// Point, then per model and CEP its value (CSV, file units).
+    pub csv: PathBuf,
+}
+
+/// [`cep_traces`] plotted into `dir/STEM.svg` (one panel per CEP, a series per model) and
+/// written as `dir/STEM.csv`.
+pub fn write_cep_traces(
+    model: &Path,
+    path: &PathSpec,
+    trace: &[String],
+    dir: &Path,
+    stem: &str,
+) -> Result<CepTraceFiles, CalibrationError> {
+    let (results, traced) = cep_traces(model, path, trace)?;
+    std::fs::create_dir_all(dir).map_err(|source| CalibrationError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let svg = dir.join(format!("{stem}.svg"));
+    let names: Vec<&str> = traced.iter().map(|t| t.name.as_str()).collect();
+    let units: Vec<&str> = traced.iter().map(|t| t.unit).collect();
+    rigcal_model::report::plot_traces(
+        &svg,
+        &format!("CEPs along {} (seed 000 Fig. 10 e–g)", path.name),
+        &names,
+        &units,
+        &results,
+    )?;
+    let mut text = String::from("point");
+    for r in &results {
+        for t in &traced {
+            let _ = write!(text, ",{}_{}_{}", r.model, t.name, t.unit);
+        }
+    }
+    text.push('\n');
+    for i in 0..path.points.len() {
+        let _ = write!(text, "{i}");
+        for r in &results {
+            for t in &r.traces {
+                let _ = write!(text, ",{:.6}", t[i]);
+            }
+        }
+        text.push('\n');
+    }
+    let csv = dir.join(format!("{stem}.csv"));
+    std::fs::write(&csv, text).map_err(|source| CalibrationError::Io {
+        path: csv.clone(),
+        source,
+    })?;
+    Ok(CepTraceFiles { svg, csv })
 }
 
 /// The first point of a model where compensation failed, and why.

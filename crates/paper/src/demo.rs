@@ -28,7 +28,7 @@ use rigcal_core::kinematics::Robot;
 use rigcal_core::recording::Recording;
 use rigcal_core::rig::Rig;
 use rigcal_model::division::{DivisionError, DivisionSpace, Selection, Space};
-use rigcal_model::learners::{FcmacTraining, LearnerKind};
+use rigcal_model::learners::{FcmacInit, FcmacTraining, LearnerKind};
 use rigcal_model::model::{ModelBody, ModelFile};
 use rigcal_model::report::{mean_max_rows, PathSpec};
 use rigcal_sim::world::Scenario;
@@ -63,6 +63,12 @@ pub struct DemoOptions {
     /// Regions' CEPs by the paper's plain least squares instead of rigcal's MAP estimate
     /// around the parent's ([`CalibrationOptions::map_prior`] false): the departure's measure.
     pub plain_least_squares: bool,
+    /// Where every FCMAC's cells start ([`FcmacInit`]; the paper does not say).
+    pub fcmac_init: FcmacInit,
+    /// Section 6 with Gaussian measurement noise of this share of the mean uncalibrated
+    /// error on the Fig. 6 path (the paper's further run: about 0.03); None: the scenario's
+    /// own (none) ([`crate::extras::noise_sigma_mm`]).
+    pub noise_share: Option<f64>,
 }
 
 /// What the demo tells its caller as it goes.
@@ -306,6 +312,7 @@ fn sec7_options(o: &DemoOptions, paths: PathSet, joint_commands: bool) -> Sec7Op
     // `--learner-tolerance` overrides the preset's section 7 choice.
     calibration.learner_tolerance = o.learner_tolerance.or(calibration.learner_tolerance);
     calibration.learner_settings.training = o.fcmac_training;
+    calibration.learner_settings.init = o.fcmac_init;
     calibration.confidence_z = o.confidence_z.unwrap_or(calibration.confidence_z);
     calibration.map_prior = !o.plain_least_squares;
     Sec7Options {
@@ -403,6 +410,7 @@ impl Demo<'_> {
         o.seed = self.o.seed;
         o.learner_tolerance = self.o.learner_tolerance;
         o.learner_settings.training = self.o.fcmac_training;
+        o.learner_settings.init = self.o.fcmac_init;
         o.confidence_z = self.o.confidence_z.unwrap_or(o.confidence_z);
         o.map_prior = !self.o.plain_least_squares;
         o
@@ -411,7 +419,10 @@ impl Demo<'_> {
     /// Step 1: Figs. 6, 7 and 8 and the CEP jumps in the paper's regime.
     fn paper_steps(&mut self) -> Result<PaperRegimeSummary, DemoError> {
         let rig = Rig::load(Path::new(PAPER_RIG))?;
-        let sc = Scenario::load(Path::new(PAPER_SCENARIO), None)?;
+        let mut sc = Scenario::load(Path::new(PAPER_SCENARIO), None)?;
+        if let Some(share) = self.o.noise_share {
+            sc.measurement.noise_mm = crate::extras::noise_sigma_mm(&sc, share);
+        }
         let opts = self.options(Space::Joint);
         self.heading(
             "1. Seed 000's simulations in the paper's regime (sim/paper-fig6.toml, ideal instrument)",
@@ -568,6 +579,13 @@ impl Demo<'_> {
         for plot in report.plot(&self.o.out.join("rig-plots"))? {
             self.say(&format!("plot: {}\n", plot.display()));
         }
+        let ceps =
+            crate::extras::rig_cep_plot(&report, &self.o.preset, &self.o.out.join("rig-plots"))?;
+        self.say(&format!(
+            "plot: {} (CEPs along the path, seed 000 Fig. 10 e–g; values in {})\n",
+            ceps.svg.display(),
+            ceps.csv.display()
+        ));
         self.heading(
             "3. Diagnosis: what the geometric model leaves out of the division session's recording",
         );

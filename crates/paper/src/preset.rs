@@ -41,6 +41,10 @@ pub struct Preset {
     /// measurements (D-optimal locations), Fig. 6 then Fig. 7 (`scripts/measurements-vs-accuracy.sh`
     /// sweeps them).
     pub half_budget_per_region: [usize; 2],
+    /// Not in the paper (its order is the worst region first): which failing region splits
+    /// next once section 6's region cap binds, joint-space divisions then Cartesian ones;
+    /// rigcal's choice on the tuning set (docs/seeds.md).
+    pub split_order: [SplitOrder; 2],
     /// Section 7: the experiment on the rig.
     pub section7: Section7,
 }
@@ -67,8 +71,8 @@ pub struct Section7 {
     /// rigcal's choice on the tuning set (docs/seeds.md).
     pub test_plan: TestPlan,
     /// Which failing region splits next, which decides what is left above the demand at the
-    /// cap of 85: the paper's "worst first" here, against the library's excess × size that
-    /// section 6 uses, chosen on the tuning set (docs/seeds.md).
+    /// cap of 85: the paper's "worst first" here, against the library's excess × size
+    /// (section 6's joint-space divisions), chosen on the tuning set (docs/seeds.md).
     pub split_order: SplitOrder,
     /// Not in the paper: the learner tolerance ([`CalibrationOptions::learner_tolerance`]) of
     /// section 7's FCMAC, chosen on the tuning set (docs/seeds.md: 0.2 against the library's
@@ -88,6 +92,7 @@ pub const SEED_000: Preset = Preset {
     fig8_point_deg: [92.0, 75.0, -22.0],
     design_poses: 100,
     half_budget_per_region: [10, 9],
+    split_order: [SplitOrder::ExcessSize, SplitOrder::Worst],
     section7: Section7 {
         accuracy_mm: 0.5,
         regions: 85,
@@ -113,6 +118,14 @@ impl Preset {
         }
     }
 
+    /// Section 6's split order for a division in `space`.
+    pub fn split_order(&self, space: Space) -> SplitOrder {
+        match space {
+            Space::Joint => self.split_order[0],
+            Space::Cartesian => self.split_order[1],
+        }
+    }
+
     /// FCMAC sensors per input of a division in `space`: the first joint's coordinate is q1 in
     /// joint space, the azimuth (which equals q1) in Cartesian space.
     fn fcmac_sensors(&self, space: Space) -> [usize; 3] {
@@ -129,7 +142,8 @@ impl Preset {
     }
 
     /// Section 6's calibration of a division in `space`: the demanded accuracy, measurements
-    /// per region, region cap, design poses and FCMAC; every other setting the library's.
+    /// per region, region cap, design poses, split order and FCMAC; every other setting the
+    /// library's.
     pub fn calibration(&self, space: Space) -> CalibrationOptions {
         CalibrationOptions {
             space,
@@ -137,6 +151,7 @@ impl Preset {
             per_region: self.per_region,
             max_regions: Some(self.region_cap(space)),
             design_poses: self.design_poses,
+            split_order: self.split_order(space),
             learner_settings: self.learner_settings(space),
             ..Default::default()
         }
@@ -188,6 +203,7 @@ mod tests {
                 ..Default::default()
             };
             assert_eq!(options.region_cap(), p.region_cap(space));
+            assert_eq!(p.calibration(space).split_order, p.split_order(space));
             let preset = p.calibration(space);
             assert_eq!(
                 preset.learner_settings.fcmac_config(space),
@@ -198,6 +214,7 @@ mod tests {
                 CalibrationOptions {
                     max_regions: None,
                     learner_settings: library,
+                    split_order: SplitOrder::default(),
                     ..preset
                 },
                 options

@@ -278,7 +278,7 @@ pub fn run(
 /// A straight Cartesian line from `ends[0]` to `ends[1]` (world mm) of `n` points, each the
 /// nominal inverse kinematics from its neighbour's joints (one configuration all along), and
 /// every point measurable on the rig.
-fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSpec, Sec7Error> {
+pub fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSpec, Sec7Error> {
     let nominal = ErrorParams::zeros(rig.chain.layout());
     let (a, b) = (Vector3::from(ends[0]), Vector3::from(ends[1]));
     let mut seed: Option<Vec<f64>> = None;
@@ -312,6 +312,34 @@ fn cartesian_line(rig: &Rig, ends: [[f64; 3]; 2], n: usize) -> Result<PathSpec, 
         ),
         points,
     })
+}
+
+/// Another straight path (`ends`, world mm, `n` points) measured with the experiment already
+/// in `files.out` (its division session's registration and its model file), once per method
+/// through the rig's own command path, into `dir` (`crate::extras`: the paper's "several
+/// different paths").
+pub fn measure_another_path(
+    files: Sec7Files<'_>,
+    ends: [[f64; 3]; 2],
+    n: usize,
+    dir: &Path,
+) -> Result<CommandPathRun, Sec7Error> {
+    let rig = Rig::load(files.rig)?;
+    let sc = Scenario::load(files.scenario, None).map_err(CalibrationError::from)?;
+    let path = cartesian_line(&rig, ends, n)?;
+    let registration = registration_of(&rig, &files.division_dir())?;
+    let model_file = files.model_file();
+    let model =
+        rigcal_model::model::ModelFile::load(&model_file).map_err(CalibrationError::from)?;
+    let models = model
+        .file
+        .error_models(&rig, &model_file)
+        .map_err(CalibrationError::from)?;
+    let commands = method_commands(&rig, &path, &models)?;
+    let cp = rigcal_calibration::rig_check::command_path(&rig);
+    let here = Sec7Files { out: dir, ..files };
+    let fallbacks = Arc::new(AtomicUsize::new(0));
+    path_session(&rig, &sc, here, &registration, &commands, cp, &fallbacks)
 }
 
 /// The rig's devices on the emulators of `sc`, every arm move on command path `cp`

@@ -67,4 +67,24 @@ impl JointSpec {
         };
         v >= self.min - tol && v <= self.max + tol
     }
+
+    /// True when a joint *reading* `v` (what the arm reported, not a command) lies within the
+    /// limits or at most [`READING_TOLERANCE_DEG`] / [`READING_TOLERANCE_MM`] past one. An arm
+    /// commanded to its limit can report a hair beyond it (encoder counts, servo settling, the
+    /// controller's rounding): a recording holding such a reading is the arm's truth, and
+    /// refusing it would make the session's own recording unreadable. Anything further past
+    /// is a unit, sign or column error and is still refused.
+    pub fn within_reading(&self, v: f64) -> bool {
+        let tol = match self.kind {
+            JointKind::Revolute => READING_TOLERANCE_DEG.to_radians(),
+            JointKind::Prismatic => READING_TOLERANCE_MM,
+        };
+        v >= self.min - tol && v <= self.max + tol
+    }
 }
+
+/// How far past a revolute joint's limit a reading may lie (degrees): ten times the
+/// Movemaster's 0.001° servo resolution, far below any unit or sign error.
+pub const READING_TOLERANCE_DEG: f64 = 0.01;
+/// How far past a prismatic joint's limit a reading may lie (mm).
+pub const READING_TOLERANCE_MM: f64 = 0.01;

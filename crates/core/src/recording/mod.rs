@@ -689,7 +689,8 @@ impl RowReader<'_> {
         let mut q = Vec::with_capacity(joints.len());
         for (spec, &c) in joints.iter().zip(&cols.q) {
             let v = spec.kind.from_file_units(self.required(c)?);
-            if !spec.within(v) {
+            // A row holds what the arm reported, which may lie a hair past a limit.
+            if !spec.within_reading(v) {
                 return Err(self.bad(
                     c,
                     format!(
@@ -1145,6 +1146,29 @@ mod tests {
         assert_eq!(rec.rows[0].extra, vec!["ann"]);
         assert!((rec.rows[0].q[0] - 10f64.to_radians()).abs() < 1e-15);
         assert_eq!(rec.measured().count(), 1);
+    }
+
+    /// A session at seed 123 of a tuning run recorded a `via` row at q2 = -30.000214° against
+    /// a limit of -30° (the arm's report of a pose commanded at its limit) and could not read
+    /// its own recording back. A hair past a limit is a reading; a tenth of a degree is not.
+    #[test]
+    fn a_reading_a_hair_past_a_limit_is_kept_and_a_tenth_of_a_degree_is_refused() {
+        let hair = "seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n1,0,-150.000214,500.004,1,2,3\n";
+        let rec = read_csv(hair.as_bytes(), Path::new("r.csv"), &joints()).unwrap();
+        assert!((rec.rows[0].q[0] - (-150.000214f64).to_radians()).abs() < 1e-12);
+        for (row, column) in [
+            ("1,0,-150.1,20,1,2,3", "line 2, column 3 (`q1_deg`)"),
+            ("1,0,10,500.02,1,2,3", "line 2, column 4 (`q2_mm`)"),
+        ] {
+            let text = format!("seq,t_s,q1_deg,q2_mm,x_mm,y_mm,z_mm\n{row}\n");
+            let err = read_csv(text.as_bytes(), Path::new("r.csv"), &joints())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                err.contains(column) && err.contains("outside joint"),
+                "{err}"
+            );
+        }
     }
 
     #[test]

@@ -3,7 +3,7 @@
 //! partial F-test of adding it, column-scaled least squares, row selection and weighting.
 
 use super::MIN_VISIBLE;
-use crate::identification::dense::{bounded_svd, gram, householder_r};
+use crate::identification::dense::{self, bounded_svd, gram, tall_r};
 use nalgebra::{DMatrix, DVector};
 use rigcal_core::stats::{f_sf, ln_f_sf};
 
@@ -50,7 +50,7 @@ fn orth_basis_by_qr(s: &DMatrix<f64>, tol: f64) -> Option<DMatrix<f64>> {
     if s.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    let r = householder_r(s.clone());
+    let r = tall_r(s);
     let svd = bounded_svd(r, false, true)?;
     let vt = svd.v_t?;
     let keep: Vec<usize> = (0..svd.singular_values.len())
@@ -112,10 +112,21 @@ pub fn visible_basis_of_projection(
     norms: &[f64],
     xp: &DMatrix<f64>,
 ) -> Option<(DMatrix<f64>, f64)> {
+    visible_basis_in(norms, xp, xp.nrows())
+}
+
+/// [`visible_basis_of_projection`] of a candidate over `nrows` stacked rows, given its part
+/// past the model `xp` in any form with the same inner products (e.g. compressed to a
+/// triangular factor): the basis is in `xp`'s rows.
+pub fn visible_basis_in(
+    norms: &[f64],
+    xp: &DMatrix<f64>,
+    nrows: usize,
+) -> Option<(DMatrix<f64>, f64)> {
     let mut cols = Vec::new();
     let mut vis2 = 0.0;
     for (c, &n) in norms.iter().enumerate() {
-        if n <= 1e-12 * (xp.nrows() as f64).sqrt() {
+        if n <= 1e-12 * (nrows as f64).sqrt() {
             continue;
         }
         let v = xp.column(c).norm() / n;
@@ -170,20 +181,45 @@ pub fn visible_rank_and_dss(
     let g = DMatrix::from_fn(k, k, |i, j| scale[i] * scale[j]);
     let g = gram(&s).component_mul(&g);
     let b = DVector::from_fn(k, |i, _| scale[i] * s.column(i).dot(r));
-    if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
-        return Some(None);
-    }
-    let eig = nalgebra::SymmetricEigen::new(g);
-    let t2 = VISIBLE_RANK_TOL * VISIBLE_RANK_TOL;
     // The Gram matrix's entries are sums of n products of unit-norm columns: rounding moves its
     // eigenvalues by at most about k·n·ε.
     let slack = (k * n) as f64 * f64::EPSILON;
+    rank_and_dss_of_scaled_gram(g, &b, slack)
+}
+
+/// The rank and ΔSS of the columns with (unit-diagonal) Gram matrix `g` and products `b` with
+/// the residual, as in [`visible_rank_and_dss`]: singular values √λ above
+/// [`VISIBLE_RANK_TOL`] count, ΔSS = Σ (vᵢᵀb)²/λᵢ over them; Some(None) when an eigenvalue lies
+/// within a factor 2 (√2 in singular value) or `slack` of the tolerance; None when no direction
+/// counts.
+fn rank_and_dss_of_scaled_gram(
+    g: DMatrix<f64>,
+    b: &DVector<f64>,
+    slack: f64,
+) -> Option<Option<(usize, f64)>> {
+    // Not finite (never on bounded data): the caller takes the basis, whose SVD is bounded.
+    if g.iter().any(|v| !v.is_finite()) || b.iter().any(|v| !v.is_finite()) {
+        return Some(None);
+    }
+    rank_and_dss_of_eigen(&nalgebra::SymmetricEigen::new(g), b, slack)
+}
+
+/// [`rank_and_dss_of_scaled_gram`] from the Gram matrix's eigen-decomposition `eig`.
+fn rank_and_dss_of_eigen(
+    eig: &nalgebra::SymmetricEigen<f64, nalgebra::Dyn>,
+    b: &DVector<f64>,
+    slack: f64,
+) -> Option<Option<(usize, f64)>> {
+    if b.iter().any(|v| !v.is_finite()) {
+        return Some(None);
+    }
+    let t2 = VISIBLE_RANK_TOL * VISIBLE_RANK_TOL;
     let mut rank = 0;
     let mut dss = 0.0;
     for (i, &l) in eig.eigenvalues.iter().enumerate() {
         if l > 2.0 * t2 && l - slack > t2 {
             rank += 1;
-            dss += eig.eigenvectors.column(i).dot(&b).powi(2) / l;
+            dss += eig.eigenvectors.column(i).dot(b).powi(2) / l;
         } else if !(l < 0.5 * t2 && l + slack < t2) {
             return Some(None);
         }
@@ -194,18 +230,14 @@ pub fn visible_rank_and_dss(
 /// The singular-value tolerance of a visible part's basis ([`visible_basis_of_projection`]).
 pub const VISIBLE_RANK_TOL: f64 = 0.1 * MIN_VISIBLE;
 
-/// A candidate's columns with the columns of a growing orthonormal basis projected out, kept up
-/// to date as the basis grows: forward selection appends directions to its model at each step,
-/// so each candidate is projected past the new directions only, not past the whole model again.
-/// Each projection is applied twice, as in [`project_out`].
+/// A candidate's columns past an orthonormal basis (projected out twice, as in [`project_out`]),
+/// with their norms before the projection.
 #[derive(Debug, Clone)]
 pub struct Projection {
     /// The column norms of the candidate before any projection.
     pub norms: Vec<f64>,
-    /// Its columns past the first `upto` columns of the basis.
+    /// Its columns past the basis.
     pub xp: DMatrix<f64>,
-    /// How many leading basis columns are projected out.
-    pub upto: usize,
 }
 
 impl Projection {
@@ -214,18 +246,234 @@ impl Projection {
         Projection {
             norms: x.column_iter().map(|c| c.norm()).collect(),
             xp: project_out(q, x),
+        }
+    }
+}
+
+/// A term's columns past a growing orthonormal model, tracked through their Gram matrix: the
+/// columns X are projected past the model once, when the term is first tested, and as the model
+/// grows by orthonormal directions U (orthogonal to the model before them) the products C = UᵀX
+/// are kept and the Gram matrix of the columns past the grown model is updated as
+/// G ← G − CᵀC (UᵀX is U's product with the columns themselves, since U is orthogonal to the
+/// model X was made past). A test then needs the k × k Gram matrix and the columns' products
+/// with the residual, never the projected columns over all rows; those are formed, as
+/// X − U·C, only for the terms whose basis or leverages are needed ([`TrackedTerm::past`]).
+#[derive(Debug, Clone)]
+pub struct TrackedTerm {
+    /// The column norms of the term before any projection.
+    pub norms: Vec<f64>,
+    /// Its columns past the first `made_at` columns of the model.
+    xp: DMatrix<f64>,
+    /// How many leading model columns `xp` is past.
+    made_at: usize,
+    /// UᵀX for the model columns U from `made_at` to `upto`, one row per column.
+    products: DMatrix<f64>,
+    /// The Gram matrix of its columns past the first `upto` columns of the model.
+    gram: DMatrix<f64>,
+    /// How many leading model columns `gram` is past.
+    upto: usize,
+}
+
+/// The visible columns of a tracked term and its Gram matrix's eigen-decomposition over them
+/// (scaled to unit diagonal), or why there is none ([`TrackedTerm::eigen`]).
+struct VisibleEigen {
+    /// The visible columns.
+    kept: Vec<usize>,
+    /// 1 / each visible column's norm past the model.
+    scale: Vec<f64>,
+    eig: nalgebra::SymmetricEigen<f64, nalgebra::Dyn>,
+    /// The rounding bound of the eigenvalues.
+    slack: f64,
+}
+
+impl TrackedTerm {
+    /// `x` past the orthonormal `q` (all its columns).
+    pub fn new(q: &DMatrix<f64>, x: &DMatrix<f64>) -> Self {
+        let xp = project_out(q, x);
+        TrackedTerm {
+            norms: x.column_iter().map(|c| c.norm()).collect(),
+            gram: gram(&xp),
+            products: DMatrix::zeros(0, x.ncols()),
+            xp,
+            made_at: q.ncols(),
             upto: q.ncols(),
         }
     }
 
-    /// Projects out the columns of `q` past the first `upto` (`q` starts with the basis this
-    /// projection was made with, unchanged, and has orthonormal columns).
+    /// Accounts for the columns of `q` past the first `upto` (`q` starts with the model this
+    /// term was last brought up to, unchanged, and has orthonormal columns).
     pub fn catch_up(&mut self, q: &DMatrix<f64>) {
         if q.ncols() > self.upto {
-            let new = q.columns(self.upto, q.ncols() - self.upto).into_owned();
-            self.xp = project_out(&new, &self.xp);
+            let n = q.nrows();
+            let new = &q.as_slice()[self.upto * n..];
+            let c = dense::transpose_mul(new, n, &self.xp);
+            self.gram -= dense::transpose_mul(c.as_slice(), c.nrows(), &c);
+            let old = std::mem::replace(&mut self.products, DMatrix::zeros(0, 0));
+            let m = old.nrows();
+            self.products = DMatrix::from_fn(m + c.nrows(), c.ncols(), |i, j| {
+                if i < m {
+                    old[(i, j)]
+                } else {
+                    c[(i - m, j)]
+                }
+            });
             self.upto = q.ncols();
         }
+    }
+
+    /// The term's columns past the model it was brought up to ([`Self::catch_up`]), over all
+    /// rows: X − U·(UᵀX) with the kept products, then projected past U once more for accuracy
+    /// (as [`project_out`] does twice). `q` is that model.
+    pub fn past(&self, q: &DMatrix<f64>) -> DMatrix<f64> {
+        let once = self.past_once(q);
+        let n = q.nrows();
+        let new = &q.as_slice()[self.made_at * n..self.upto * n];
+        if new.is_empty() {
+            return once;
+        }
+        let u = q.columns(self.made_at, self.upto - self.made_at);
+        let again = dense::transpose_mul(new, n, &once);
+        once - u * again
+    }
+
+    /// X − U·(UᵀX) with the kept products (one pass, for leverages).
+    fn past_once(&self, q: &DMatrix<f64>) -> DMatrix<f64> {
+        if self.upto == self.made_at {
+            return self.xp.clone();
+        }
+        let u = q.columns(self.made_at, self.upto - self.made_at);
+        &self.xp - u * &self.products
+    }
+
+    /// [`visible_rank_and_dss`] of the term past the model it was brought up to, against the
+    /// residual `r` of that model (orthogonal to it), from the tracked Gram matrix. Inner None
+    /// also where the Gram matrix's rounding could tip whether a column counts as visible.
+    pub fn rank_and_dss(&self, r: &DVector<f64>) -> Option<Option<(usize, f64)>> {
+        let v = match self.eigen()? {
+            Some(v) => v,
+            None => return Some(None),
+        };
+        let b = DVector::from_fn(v.kept.len(), |i, _| {
+            v.scale[i] * dense::dot(self.xp.column(v.kept[i]).as_slice(), r.as_slice())
+        });
+        rank_and_dss_of_eigen(&v.eig, &b, v.slack)
+    }
+
+    /// The rank and ΔSS of the term's visible part past the model `q` it was brought up to,
+    /// against that model's residual `r`, decided as [`visible_basis_of_projection`] decides
+    /// them (the SVD of the Householder factor of the visible columns scaled to unit norm,
+    /// singular values above [`VISIBLE_RANK_TOL`]) but without forming the basis:
+    /// ΔSS = Σ (vₖᵀSᵀr / σₖ)² over the kept directions. For the terms whose Gram matrix leaves
+    /// the rank unsettled ([`Self::rank_and_dss`]). None: nothing visible.
+    pub fn rank_and_dss_by_qr(&self, q: &DMatrix<f64>, r: &DVector<f64>) -> Option<(usize, f64)> {
+        let xp = self.past_once(q);
+        let n = xp.nrows();
+        let mut kept = Vec::new();
+        for (c, &nc) in self.norms.iter().enumerate() {
+            if nc > 1e-12 * (n as f64).sqrt() && xp.column(c).norm() / nc >= MIN_VISIBLE {
+                kept.push(c);
+            }
+        }
+        if kept.is_empty() {
+            return None;
+        }
+        let s = unit_columns(&xp.select_columns(&kept));
+        if s.nrows() < 2 * s.ncols() || s.iter().any(|v| !v.is_finite()) {
+            let (u, _) = visible_basis_of_projection(&self.norms, &self.past(q))?;
+            return Some((u.ncols(), (u.transpose() * r).norm_squared()));
+        }
+        let b = dense::transpose_times(&s, r);
+        let svd = bounded_svd(tall_r(&s), false, true)?;
+        let vt = svd.v_t?;
+        let mut rank = 0;
+        let mut dss = 0.0;
+        for (k, &sv) in svd.singular_values.iter().enumerate() {
+            if sv > VISIBLE_RANK_TOL {
+                rank += 1;
+                dss += (vt.row(k).transpose().dot(&b) / sv).powi(2);
+            }
+        }
+        (rank > 0).then_some((rank, dss))
+    }
+
+    /// An orthonormal basis (to rounding) of the term's visible part past the model `q` it was
+    /// brought up to, from the Gram matrix's eigenvectors: S·V·Λ^(−1/2) over the kept
+    /// directions, S the visible columns past the model scaled to unit norm. The span and rank
+    /// [`visible_basis_of_projection`] gives, for leverages (not for growing the model); None
+    /// where the rank decision is not clear-cut or nothing is visible.
+    pub fn leverage_basis(&self, q: &DMatrix<f64>) -> Option<DMatrix<f64>> {
+        let v = self.eigen()??;
+        let t2 = VISIBLE_RANK_TOL * VISIBLE_RANK_TOL;
+        let mut dirs = Vec::new();
+        for (i, &l) in v.eig.eigenvalues.iter().enumerate() {
+            if l > 2.0 * t2 && l - v.slack > t2 {
+                dirs.push(i);
+            } else if !(l < 0.5 * t2 && l + v.slack < t2) {
+                return None;
+            }
+        }
+        if dirs.is_empty() {
+            return None;
+        }
+        let past = self.past_once(q);
+        let k = v.kept.len();
+        // Column c of the coefficients: the kept column i scaled, times eigenvector c over √λ.
+        let coef = DMatrix::from_fn(k, dirs.len(), |i, c| {
+            v.scale[i] * v.eig.eigenvectors[(i, dirs[c])] / v.eig.eigenvalues[dirs[c]].sqrt()
+        });
+        let s = if k == past.ncols() {
+            past
+        } else {
+            past.select_columns(&v.kept)
+        };
+        Some(s * coef)
+    }
+
+    /// The visible columns and their scaled Gram matrix's eigen-decomposition. Outer None:
+    /// nothing visible. Inner None: the Gram matrix's rounding could tip whether a column counts
+    /// as visible, or it is not finite.
+    fn eigen(&self) -> Option<Option<VisibleEigen>> {
+        let n = self.xp.nrows();
+        // Each tracked Gram entry carries the rounding of n products and of one subtraction
+        // per model direction added since: at most about (n + m)·ε·‖xᵢ‖‖xⱼ‖ for the columns
+        // past the model the term was made with.
+        let m = self.upto - self.made_at;
+        let unit = (n + m) as f64 * f64::EPSILON;
+        let mut kept = Vec::new();
+        let mut scale = Vec::new();
+        let mut spread: f64 = 1.0;
+        for (c, &nc) in self.norms.iter().enumerate() {
+            if nc <= 1e-12 * (n as f64).sqrt() {
+                continue;
+            }
+            let made2 = self.xp.column(c).norm_squared();
+            let pn2 = self.gram[(c, c)];
+            let edge = (MIN_VISIBLE * nc).powi(2);
+            if (pn2 - edge).abs() <= 2.0 * unit * made2 {
+                return Some(None);
+            }
+            if pn2 >= edge {
+                kept.push(c);
+                scale.push(1.0 / pn2.sqrt());
+                spread = spread.max(made2 / pn2);
+            }
+        }
+        if kept.is_empty() {
+            return None;
+        }
+        let k = kept.len();
+        let g = DMatrix::from_fn(k, k, |i, j| {
+            scale[i] * scale[j] * self.gram[(kept[i], kept[j])]
+        });
+        if g.iter().any(|v| !v.is_finite()) {
+            return Some(None);
+        }
+        Some(Some(VisibleEigen {
+            kept,
+            scale,
+            eig: nalgebra::SymmetricEigen::new(g),
+            slack: k as f64 * unit * spread,
+        }))
     }
 }
 
@@ -262,6 +510,13 @@ pub struct LeastSquares {
 
 /// Least squares with column scaling and an SVD pseudo-inverse (directions A cannot see get no
 /// weight, so nearly absorbed candidates do not blow up the solution).
+///
+/// How: with S the column-scaled A, the Householder QR of [S | b] = Q·[R r; 0 ρ] carries all of
+/// it: S and R have the same singular values σₖ and right vectors vₖ, and the left vectors'
+/// products with b are uₖᵀb = u'ₖᵀr for the left vectors u'ₖ of R (uₖ = Q·u'ₖ). So the SVD is
+/// taken of the small R instead of the tall S (whose left vectors nalgebra rotates over every
+/// row at each sweep), the same solution to rounding. Matrices with fewer than twice as many
+/// rows as columns take the SVD of S itself.
 pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
     let p = a.ncols();
     let failed = |p: usize| LeastSquares {
@@ -277,6 +532,15 @@ pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
     for (c, dc) in d.iter().enumerate() {
         s.column_mut(c).scale_mut(1.0 / dc);
     }
+    let compressed = if s.nrows() >= 2 * (p + 1) && b.iter().all(|v| v.is_finite()) {
+        compress_with(s.clone(), b)
+    } else {
+        None
+    };
+    let (s, b) = match compressed {
+        Some((r, rb)) => (r, rb),
+        None => (s, b.clone()),
+    };
     let Some(svd) = bounded_svd(s, true, true) else {
         return failed(p);
     };
@@ -294,7 +558,7 @@ pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
             continue;
         }
         let v = vt.row(k).transpose();
-        x += &v * (u.column(k).dot(b) / sv);
+        x += &v * (u.column(k).dot(&b) / sv);
         cov += &v * v.transpose() / (sv * sv);
     }
     for i in 0..p {
@@ -308,6 +572,22 @@ pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
         normal_inverse: cov,
         rank,
     }
+}
+
+/// The triangular factor R (p × p) of the tall `s` (p columns) and r, the first p entries of
+/// Qᵀb, from the Householder QR of [s | b]; None when a value is not finite.
+fn compress_with(s: DMatrix<f64>, b: &DVector<f64>) -> Option<(DMatrix<f64>, DVector<f64>)> {
+    let p = s.ncols();
+    let mut sb = s.insert_column(p, 0.0);
+    sb.set_column(p, b);
+    if sb.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let r = tall_r(&sb);
+    Some((
+        r.view((0, 0), (p, p)).into_owned(),
+        r.view((0, p), (p, 1)).column(0).into_owned(),
+    ))
 }
 
 /// The rows of measurements `idx` from a stacked matrix.
@@ -444,6 +724,82 @@ mod tests {
         close(visible, 0.5f64.sqrt(), 1e-12);
         assert_eq!(u.ncols(), 1);
         close(u.column(0).dot(&perp).abs(), 1.0, 1e-12);
+    }
+
+    /// A model grown in two steps and a term of 6 columns, one nearly inside the model and one
+    /// a combination of two others, over 900 rows.
+    fn grown_model_and_term() -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DVector<f64>) {
+        let n = 900;
+        let f =
+            |r: usize, c: usize| ((r as f64 * 0.021 + c as f64 * 0.37) * (c as f64 + 1.3)).sin();
+        let model = DMatrix::from_fn(n, 5, f);
+        let q0 = orth_basis(&model, 1e-9);
+        let extra = project_out(&q0, &DMatrix::from_fn(n, 3, |r, c| f(r, c + 11).powi(2)));
+        let q1 = hcat(&[q0.clone(), orth_basis(&extra, 1e-9)], n);
+        let mut x = DMatrix::from_fn(n, 6, |r, c| f(r, c + 20) * (1.0 + c as f64));
+        let inside = q1.column(6) * 10.0 + x.column(0) * 1e-5;
+        x.set_column(4, &inside);
+        let combo = x.column(1) * 2.0 - x.column(2);
+        x.set_column(5, &combo);
+        let y = DVector::from_fn(n, |r, _| f(r, 40) + 0.3 * x[(r, 1)]);
+        let r1 = &y - &q1 * (q1.transpose() * &y);
+        (q0, q1, x, r1)
+    }
+
+    #[test]
+    fn a_tracked_term_tests_as_its_basis_past_the_grown_model_does() {
+        let (q0, q1, x, r1) = grown_model_and_term();
+        // Made past the first model, brought up to the grown one.
+        let mut term = TrackedTerm::new(&q0, &x);
+        term.catch_up(&q1);
+        // The direct route: the columns past the grown model and their orthonormal basis.
+        let (u, _) = visible_basis(&q1, &x).expect("visible");
+        let dss = (u.transpose() * &r1).norm_squared();
+        assert_eq!(
+            u.ncols(),
+            4,
+            "the dependent column adds nothing, the absorbed one is dropped"
+        );
+        let (rank, got) = term.rank_and_dss(&r1).expect("visible").expect("settled");
+        assert_eq!(rank, 4);
+        close(got, dss, 1e-9 * dss);
+        let (rank, got) = term.rank_and_dss_by_qr(&q1, &r1).expect("visible");
+        assert_eq!(rank, 4);
+        close(got, dss, 1e-9 * dss);
+        // The same part past the grown model, and a leverage basis of the same span.
+        assert!((term.past(&q1) - project_out(&q1, &x)).norm() < 1e-10 * x.norm());
+        let b = term.leverage_basis(&q1).expect("settled");
+        assert_eq!(b.ncols(), 4);
+        assert!((b.transpose() * &b - DMatrix::identity(4, 4)).norm() < 1e-8);
+        assert!(project_out(&u, &b).norm() < 1e-8 && project_out(&b, &u).norm() < 1e-8);
+    }
+
+    #[test]
+    fn least_squares_on_the_compressed_problem_equals_the_svd_of_the_matrix() {
+        // The SVD pseudo-inverse of the column-scaled matrix itself, written out, against
+        // `lstsq` (which takes the SVD of the Householder factor of [S | b]) on 400 rows with
+        // columns of very different sizes.
+        let a = DMatrix::from_fn(400, 5, |r, c| {
+            (r as f64 * 0.05 * (c as f64 + 1.0)).cos() * 10f64.powi(c as i32 - 2)
+        });
+        let b = DVector::from_fn(400, |r, _| (r as f64 * 0.013).sin() + 0.1);
+        let d: Vec<f64> = a.column_iter().map(|c| c.norm()).collect();
+        let s = DMatrix::from_fn(400, 5, |r, c| a[(r, c)] / d[c]);
+        let svd = s.svd(true, true);
+        let (u, vt) = (svd.u.expect("u"), svd.v_t.expect("v"));
+        let mut want = DVector::zeros(5);
+        for k in 0..5 {
+            want += vt.row(k).transpose() * (u.column(k).dot(&b) / svd.singular_values[k]);
+        }
+        let fit = lstsq(&a, &b);
+        assert_eq!(fit.rank, 5);
+        for c in 0..5 {
+            close(
+                fit.solution[c],
+                want[c] / d[c],
+                1e-9 * (want[c] / d[c]).abs().max(1e-3),
+            );
+        }
     }
 
     #[test]

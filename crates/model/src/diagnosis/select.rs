@@ -12,12 +12,13 @@
 //! Units: stacked regressors in mm per unit coefficient (3 rows per measurement).
 
 use super::linalg::{
-    hcat, orth_basis, partial_f_ln_of, project_out, visible_basis, visible_basis_of_projection,
-    visible_rank_and_dss, Projection,
+    hcat, orth_basis, partial_f_ln_of, project_out, visible_basis, visible_basis_in,
+    visible_basis_of_projection, Projection, TrackedTerm,
 };
 use super::screen::{screen, Screen, ALPHA_PART};
 use super::shapes::{refine_position, shape_bases, Form, ShapeSpec, Variable};
 use super::{Candidate, Data, DiagnoseError, Standard, SEPARABLE_CORRELATION};
+use crate::identification::dense::tall_r;
 use nalgebra::{DMatrix, DVector, Matrix3};
 use std::collections::HashMap;
 
@@ -231,23 +232,25 @@ fn test_figures(
     k: usize,
     dss: f64,
 ) -> (f64, f64, f64) {
-    figures(screen, basis.ncols(), residual, k, dss)
+    figures(screen, basis.ncols(), residual.len(), residual, k, dss)
 }
 
-/// [`test_figures`] against a model of `model_columns` orthonormal columns.
+/// [`test_figures`] against a model of `model_columns` orthonormal columns over `nrows` stacked
+/// rows (`residual` may be its compressed form: only its norm is used).
 fn figures(
     screen: &Screen,
     model_columns: usize,
+    nrows: usize,
     residual: &DVector<f64>,
     k: usize,
     dss: f64,
 ) -> (f64, f64, f64) {
-    let dof = residual.len().saturating_sub(model_columns);
+    let dof = nrows.saturating_sub(model_columns);
     let (p, ln_p, dss) = partial_f_ln_of(k, dss, residual, dof);
     let s2 = screen.noise_var().unwrap_or_else(|| {
         (residual.norm_squared() - dss).max(0.0) / dof.saturating_sub(k).max(1) as f64
     });
-    let size = size_ratio(dss, k, s2, residual.len() / 3);
+    let size = size_ratio(dss, k, s2, nrows / 3);
     (p, ln_p, size)
 }
 
@@ -255,35 +258,34 @@ fn figures(
 /// tested: library candidates and shape bases by index.
 #[derive(Default)]
 struct Projections {
-    lib: HashMap<usize, Projection>,
-    shapes: HashMap<usize, Projection>,
+    lib: HashMap<usize, TrackedTerm>,
+    shapes: HashMap<usize, TrackedTerm>,
 }
 
-/// A term's test figures, with its basis when it was needed to find them.
+/// A term's test figures (its basis is formed only when needed: [`full_test`]).
 struct Quick {
     p: f64,
     ln_p: f64,
     /// Directions the term adds.
     k: usize,
     size: f64,
-    full: Option<TermTest>,
 }
 
 /// The test of term `k` (columns `x`) against the model of `sel`, through its kept projection
 /// and without forming its basis where the Gram matrix settles its rank
-/// ([`visible_rank_and_dss`]).
+/// ([`TrackedTerm::rank_and_dss`]).
 fn quick_test(
     screen: &Screen,
     sel: &Selection,
-    cache: &mut HashMap<usize, Projection>,
+    cache: &mut HashMap<usize, TrackedTerm>,
     k: usize,
     x: &DMatrix<f64>,
 ) -> Option<Quick> {
-    let proj = cache
+    let term = cache
         .entry(k)
-        .or_insert_with(|| Projection::new(&sel.basis, x));
-    proj.catch_up(&sel.basis);
-    match visible_rank_and_dss(&proj.norms, &proj.xp, &sel.residual)? {
+        .or_insert_with(|| TrackedTerm::new(&sel.basis, x));
+    term.catch_up(&sel.basis);
+    match term.rank_and_dss(&sel.residual)? {
         Some((rank, dss)) => {
             let (p, ln_p, size) = test_figures(screen, &sel.basis, &sel.residual, rank, dss);
             Some(Quick {
@@ -291,17 +293,17 @@ fn quick_test(
                 ln_p,
                 k: rank,
                 size,
-                full: None,
             })
         }
         None => {
-            let t = full_test(screen, sel, cache, k, x)?;
+            tracing::trace!(term = k, "rank not settled by the Gram matrix");
+            let (rank, dss) = term.rank_and_dss_by_qr(&sel.basis, &sel.residual)?;
+            let (p, ln_p, size) = test_figures(screen, &sel.basis, &sel.residual, rank, dss);
             Some(Quick {
-                p: t.p,
-                ln_p: t.ln_p,
-                k: t.u.ncols(),
-                size: t.size,
-                full: Some(t),
+                p,
+                ln_p,
+                k: rank,
+                size,
             })
         }
     }
@@ -312,15 +314,15 @@ fn quick_test(
 fn full_test(
     screen: &Screen,
     sel: &Selection,
-    cache: &mut HashMap<usize, Projection>,
+    cache: &mut HashMap<usize, TrackedTerm>,
     k: usize,
     x: &DMatrix<f64>,
 ) -> Option<TermTest> {
-    let proj = cache
+    let term = cache
         .entry(k)
-        .or_insert_with(|| Projection::new(&sel.basis, x));
-    proj.catch_up(&sel.basis);
-    let (u, _) = visible_basis_of_projection(&proj.norms, &proj.xp)?;
+        .or_insert_with(|| TrackedTerm::new(&sel.basis, x));
+    term.catch_up(&sel.basis);
+    let (u, _) = visible_basis_of_projection(&term.norms, &term.past(&sel.basis))?;
     test_visible(screen, &sel.basis, &sel.residual, u)
 }
 
@@ -467,12 +469,12 @@ pub fn select_terms(
 /// Adds the orthonormal direction(s) `u` (orthogonal to the model) to the selection's model.
 fn add_direction(sel: &mut Selection, u: &DMatrix<f64>) {
     sel.residual = &sel.residual - u * (u.transpose() * &sel.residual);
-    sel.basis = DMatrix::from_columns(
-        &sel.basis
-            .column_iter()
-            .chain(u.column_iter())
-            .collect::<Vec<_>>(),
-    );
+    // Appended in place: column-major storage grows at its end, so the model's columns are not
+    // copied at every step.
+    let at = sel.basis.ncols();
+    let basis = std::mem::replace(&mut sel.basis, DMatrix::zeros(0, 0));
+    sel.basis = basis.resize_horizontally(at + u.ncols(), 0.0);
+    sel.basis.columns_mut(at, u.ncols()).copy_from(u);
 }
 
 /// The weighted columns of every chosen term but number `skip` (library terms first, then
@@ -529,48 +531,61 @@ pub fn set_aside(
 /// Tests every chosen term given all the others and drops the least significant one that fails
 /// (a library term: p at or above [`ALPHA_PART`] ÷ its candidates; a shape: that or a size
 /// below [`SHAPE_MIN_SIZE`]), until none fails; then rebuilds the selection's model.
+///
+/// How: the model without term i is the standard model's orthonormal basis beside a basis of
+/// the other terms' parts past it, and the weighted residual is already orthogonal to the
+/// standard model, so every test here is least squares on the terms' parts past the standard
+/// model and that residual. Those columns are compressed once into the triangular factor R of
+/// their Householder QR ([`compress_columns`]): R has the same inner products (hence the same
+/// norms, ranks, ΔSS and residual sums of squares) on (columns + 1) rows instead of 3n, so each
+/// leave-one-term-out model costs a factorisation of a small matrix.
 fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shapes) {
     let kk = cands.testable.len().max(1) as f64;
     let nb = shapes.testable() as f64;
     let rw = &screen.residual;
     let nrows = screen.rows();
+    let columns: Vec<Option<&DMatrix<f64>>> = sel
+        .chosen
+        .iter()
+        .map(|c| cands.weighted[c.cand].as_ref())
+        .chain(sel.shapes.iter().map(|c| shapes.weighted[c.shape].as_ref()))
+        .collect();
+    let past: Vec<Option<Projection>> = columns
+        .iter()
+        .map(|x| x.map(|x| Projection::new(&screen.basis, x)))
+        .collect();
+    let (small, small_r) = compress_columns(&past, rw);
+    // Which of the original terms are still chosen (library terms first, then shapes).
+    let mut alive: Vec<usize> = (0..past.len()).collect();
     loop {
         let nlib = sel.chosen.len();
         let mut worst: Option<(usize, f64)> = None;
-        // Each term past the standard model, once per round: the model without term i is the
-        // standard model's orthonormal basis beside a basis `w` of the other terms' parts past
-        // it (what `model_without` spans, without refactoring the standard model each time),
-        // and rw is already orthogonal to the standard model.
-        let past: Vec<Option<Projection>> = (0..nlib + sel.shapes.len())
-            .map(|i| {
-                let x = if i < nlib {
-                    cands.weighted[sel.chosen[i].cand].as_ref()
-                } else {
-                    shapes.weighted[sel.shapes[i - nlib].shape].as_ref()
-                };
-                x.map(|x| Projection::new(&screen.basis, x))
-            })
-            .collect();
-        for i in 0..nlib + sel.shapes.len() {
-            let others: Vec<DMatrix<f64>> = past
+        for (i, &ti) in alive.iter().enumerate() {
+            let others: Vec<DMatrix<f64>> = alive
                 .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != i)
-                .filter_map(|(_, p)| p.as_ref().map(|p| p.xp.clone()))
+                .filter(|&&tj| tj != ti)
+                .filter_map(|&tj| small[tj].clone())
                 .collect();
-            let w = orth_basis(&hcat(&others, nrows), 1e-9);
-            let r = rw - &w * (w.transpose() * rw);
+            let w = orth_basis(&hcat(&others, small_r.len()), 1e-9);
+            let r = &small_r - &w * (w.transpose() * &small_r);
             let model_columns = screen.basis.ncols() + w.ncols();
-            let tested = past[i].as_ref().and_then(|p| {
-                let (u, _) = visible_basis_of_projection(&p.norms, &project_out(&w, &p.xp))?;
-                let dss = (u.transpose() * &r).norm_squared();
-                let (p, ln_p, size) = figures(screen, model_columns, &r, u.ncols(), dss);
-                Some(TermTest { p, ln_p, u, size })
-            });
+            let tested = match (&past[ti], &small[ti]) {
+                (Some(p), Some(xs)) => {
+                    visible_basis_in(&p.norms, &project_out(&w, xs), nrows).map(|(u, _)| {
+                        let dss = (u.transpose() * &r).norm_squared();
+                        let (p, ln_p, size) =
+                            figures(screen, model_columns, nrows, &r, u.ncols(), dss);
+                        (p, ln_p, size)
+                    })
+                }
+                _ => None,
+            };
             let fails = match tested {
                 None => Some(0.0),
-                Some(t) if i < nlib => (t.p >= ALPHA_PART / kk).then_some(t.ln_p),
-                Some(t) => (t.p >= ALPHA_PART / nb || t.size < SHAPE_MIN_SIZE).then_some(t.ln_p),
+                Some((p, ln_p, _)) if i < nlib => (p >= ALPHA_PART / kk).then_some(ln_p),
+                Some((p, ln_p, size)) => {
+                    (p >= ALPHA_PART / nb || size < SHAPE_MIN_SIZE).then_some(ln_p)
+                }
             };
             if let Some(lp) = fails {
                 if worst.is_none_or(|w| lp > w.1) {
@@ -579,6 +594,7 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
             }
         }
         let Some((i, _)) = worst else { break };
+        alive.remove(i);
         if i < nlib {
             let c = sel.chosen.remove(i);
             tracing::debug!(candidate = c.cand, "dropped: a shape explains it");
@@ -590,6 +606,38 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
     let q = model_without(screen, sel, cands, shapes, None);
     sel.residual = rw - &q * (q.transpose() * rw);
     sel.basis = q;
+}
+
+/// The terms' parts past the standard model (`past`, None where a term has no columns) and the
+/// residual `r` beside them, compressed: each term's columns and the residual as columns of
+/// the triangular factor R of the Householder QR of [parts | r] (RᵀR = [parts | r]ᵀ[parts | r],
+/// so every norm, inner product, rank and sum of squares of least squares among them is R's).
+/// Left as they are when there are fewer rows than columns.
+fn compress_columns(
+    past: &[Option<Projection>],
+    r: &DVector<f64>,
+) -> (Vec<Option<DMatrix<f64>>>, DVector<f64>) {
+    let parts: Vec<DMatrix<f64>> = past.iter().flatten().map(|p| p.xp.clone()).collect();
+    let mut all = hcat(&parts, r.len()).insert_column(parts.iter().map(|p| p.ncols()).sum(), 0.0);
+    let last = all.ncols() - 1;
+    all.set_column(last, r);
+    let m = if all.nrows() > all.ncols() {
+        tall_r(&all)
+    } else {
+        all
+    };
+    let mut at = 0;
+    let terms = past
+        .iter()
+        .map(|p| {
+            p.as_ref().map(|p| {
+                let k = p.xp.ncols();
+                at += k;
+                m.columns(at - k, k).into_owned()
+            })
+        })
+        .collect();
+    (terms, m.column(m.ncols() - 1).into_owned())
 }
 
 /// The remaining shape basis with the smallest p-value against the model of `sel` among the
@@ -604,7 +652,7 @@ fn best_shape(
     shapes: &Shapes,
     remaining: &[usize],
     nb: f64,
-    cache: &mut HashMap<usize, Projection>,
+    cache: &mut HashMap<usize, TrackedTerm>,
 ) -> Option<(usize, TermTest)> {
     let columns_left = (sel.residual.len().saturating_sub(sel.basis.ncols()) / 3)
         .saturating_sub(sel.shapes.iter().map(|c| c.x.ncols()).sum());
@@ -638,28 +686,31 @@ fn best_shape(
     }
     let hat = hat_blocks(&sel.basis);
     let before = press(&hat, &sel.residual);
-    for (k, q) in eligible {
-        let t = match q.full {
-            Some(t) => t,
-            None => {
-                let Some(x) = &shapes.weighted[k] else {
-                    continue;
-                };
-                match full_test(screen, sel, cache, k, x) {
-                    Some(t) => t,
-                    None => continue,
-                }
-            }
+    for (k, _) in eligible {
+        let Some(x) = &shapes.weighted[k] else {
+            continue;
         };
-        let with: Vec<Matrix3<f64>> = hat
-            .iter()
-            .zip(hat_blocks(&t.u))
-            .map(|(a, b)| a + b)
-            .collect();
-        let r = &sel.residual - &t.u * (t.u.transpose() * &sel.residual);
+        // PRESS needs only the span of the shape's part past the model: from its tracked Gram
+        // matrix where that settles the rank, else the basis itself (as the test takes it).
+        let (u, full) = match cache
+            .get(&k)
+            .and_then(|term| term.leverage_basis(&sel.basis))
+        {
+            Some(u) => (u, None),
+            None => match full_test(screen, sel, cache, k, x) {
+                Some(t) => (t.u.clone(), Some(t)),
+                None => continue,
+            },
+        };
+        let with: Vec<Matrix3<f64>> = hat.iter().zip(hat_blocks(&u)).map(|(a, b)| a + b).collect();
+        let r = &sel.residual - &u * (u.transpose() * &sel.residual);
         let after = press(&with, &r);
         tracing::trace!(shape = %shapes.specs[k].label(), before, after, "shape PRESS");
         if after < before {
+            let t = match full {
+                Some(t) => t,
+                None => full_test(screen, sel, cache, k, x)?,
+            };
             return Some((k, t));
         }
     }
@@ -703,7 +754,7 @@ fn best_step(
     cands: &Candidates,
     remaining: &[usize],
     chosen_visible: &DMatrix<f64>,
-    cache: &mut HashMap<usize, Projection>,
+    cache: &mut HashMap<usize, TrackedTerm>,
 ) -> Option<(usize, TermTest)> {
     let mut best: Option<(usize, Quick)> = None;
     for &k in remaining {
@@ -724,11 +775,8 @@ fn best_step(
             best = Some((k, q));
         }
     }
-    let (k, q) = best?;
-    let t = match q.full {
-        Some(t) => t,
-        None => full_test(screen, sel, cache, k, cands.weighted[k].as_ref()?)?,
-    };
+    let (k, _) = best?;
+    let t = full_test(screen, sel, cache, k, cands.weighted[k].as_ref()?)?;
     Some((k, t))
 }
 

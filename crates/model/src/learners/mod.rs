@@ -262,6 +262,26 @@ pub struct LearnerSettings {
     /// measured; see `learners::positions`).
     #[serde(default = "FcmacTraining::paper")]
     pub training: FcmacTraining,
+    /// Where the FCMAC's association cells start before training (the paper does not say;
+    /// rigcal's default is each cell at its region's CEPs).
+    #[serde(default)]
+    pub init: FcmacInit,
+}
+
+/// Where the FCMAC's weights start before (A5). Seed 000 does not state its initialisation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FcmacInit {
+    /// Each cell at the CEPs of the region at its centre, an unmeasurable region's borrowed
+    /// ones included (rigcal's default): cells no pattern reaches answer with the regions.
+    #[default]
+    Ceps,
+    /// Every cell at the conventional calibration's CEPs: cells no pattern reaches answer with
+    /// the whole-workspace fit.
+    Conventional,
+    /// Every cell at zero (Albus's usual start): cells no pattern reaches answer with the
+    /// nominal arm.
+    Zero,
 }
 
 /// What the FCMAC's training reproduces.
@@ -289,6 +309,7 @@ impl Default for LearnerSettings {
             c: [3, 3, 3],
             cmac_layers: 3,
             training: FcmacTraining::Positions,
+            init: FcmacInit::Ceps,
         }
     }
 }
@@ -418,8 +439,9 @@ impl Measured<'_> {
 }
 
 /// Trains a learner of `kind` with `settings` on the leaves of `tree`; weights start at `init`
-/// (conventional CEPs, internal units); `scale` converts CEPs to output units. An FCMAC set to
-/// train on positions does so on `measured` after its CEP training (without it, CEPs only).
+/// (conventional CEPs, internal units; an FCMAC starts as `settings.init` says); `scale`
+/// converts CEPs to output units. An FCMAC set to train on positions does so on `measured`
+/// after its CEP training (without it, CEPs only).
 pub fn train(
     kind: LearnerKind,
     settings: &LearnerSettings,
@@ -443,7 +465,11 @@ pub fn train(
                     None => init_scaled.clone(),
                 }
             };
-            let mut f = Fcmac::starting_at(config, tree.full, &init_scaled, start);
+            let mut f = match settings.init {
+                FcmacInit::Ceps => Fcmac::starting_at(config, tree.full, &init_scaled, start),
+                FcmacInit::Conventional => Fcmac::new(config, tree.full, &init_scaled),
+                FcmacInit::Zero => Fcmac::new(config, tree.full, &vec![0.0; init_scaled.len()]),
+            };
             f.train(&patterns);
             if let (FcmacTraining::Positions, Some(m)) = (settings.training, measured) {
                 let samples = m.samples(&f, scale);
