@@ -218,7 +218,7 @@ fn ten_paths_are_distinct_and_inside_the_measurable_workspace() {
 #[test]
 fn the_noise_runs_sigma_makes_noise_three_percent_of_the_error() {
     let sc = scenario("sim/paper-fig6.toml");
-    let sigma = extras::noise_sigma_mm(&sc, 0.03);
+    let sigma = rigcal_paper::paper_regime::noise_sigma_mm(&sc, 0.03);
     let total = sc
         .world()
         .error_split(&rigcal_sim::world::fig6_path(101, sc.rig.chain.dof()))
@@ -235,7 +235,7 @@ fn the_noise_runs_sigma_makes_noise_three_percent_of_the_error() {
         / n as f64;
     let share = mean_length / total;
     assert!((share - 0.03).abs() < 0.0005, "share {share}");
-    let literal = extras::noise_sigma_mm(&scenario("sim/paper-sim.toml"), 0.03);
+    let literal = rigcal_paper::paper_regime::noise_sigma_mm(&scenario("sim/paper-sim.toml"), 0.03);
     assert!((literal - 0.016).abs() < 0.0005, "σ {literal}");
 }
 
@@ -255,7 +255,8 @@ fn the_rig_cep_plot_has_the_series_and_another_path_is_measured() {
     };
     let report = sec7::run(files, &opts, &mut |_| {}).expect("the reduced section 7 run");
     let plots = dir.path().join("plots");
-    let written = extras::rig_cep_plot(&report, &SEED_000, &plots).expect("the CEP plot");
+    let written =
+        rigcal_paper::sec7::rig_cep_plot(&report, &SEED_000, &plots).expect("the CEP plot");
     let svg = std::fs::read_to_string(&written.svg).expect("the SVG");
     for name in [
         "conventional",

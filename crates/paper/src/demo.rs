@@ -67,7 +67,7 @@ pub struct DemoOptions {
     pub fcmac_init: FcmacInit,
     /// Section 6 with Gaussian measurement noise of this share of the mean uncalibrated
     /// error on the Fig. 6 path (the paper's further run: about 0.03); None: the scenario's
-    /// own (none) ([`crate::extras::noise_sigma_mm`]).
+    /// own (none) ([`crate::paper_regime::noise_sigma_mm`]).
     pub noise_share: Option<f64>,
 }
 
@@ -421,7 +421,7 @@ impl Demo<'_> {
         let rig = Rig::load(Path::new(PAPER_RIG))?;
         let mut sc = Scenario::load(Path::new(PAPER_SCENARIO), None)?;
         if let Some(share) = self.o.noise_share {
-            sc.measurement.noise_mm = crate::extras::noise_sigma_mm(&sc, share);
+            sc.measurement.noise_mm = crate::paper_regime::noise_sigma_mm(&sc, share);
         }
         let opts = self.options(Space::Joint);
         self.heading(
@@ -580,7 +580,7 @@ impl Demo<'_> {
             self.say(&format!("plot: {}\n", plot.display()));
         }
         let ceps =
-            crate::extras::rig_cep_plot(&report, &self.o.preset, &self.o.out.join("rig-plots"))?;
+            crate::sec7::rig_cep_plot(&report, &self.o.preset, &self.o.out.join("rig-plots"))?;
         self.say(&format!(
             "plot: {} (CEPs along the path, seed 000 Fig. 10 e–g; values in {})\n",
             ceps.svg.display(),

@@ -9,19 +9,17 @@
 //!   paths"): the Fig. 6 and Fig. 7 models along ten straight joint-space lines drawn by a
 //!   fixed rule ([`ten_joint_paths`]) before any of them was evaluated; with a section 7
 //!   sweep, its model along ten Cartesian lines ([`ten_rig_paths`]) measured by the rig.
-//! - **The 3 % noise run**: [`noise_sigma_mm`] turns the paper's "about 3 % of the total
+//! - **The 3 % noise run**: [`noise_sigma_mm`](crate::paper_regime::noise_sigma_mm) turns the paper's "about 3 % of the total
 //!   error" into the simulated instrument's σ ([`crate::demo::DemoOptions::noise_share`]).
-//! - **The rig's CEP plots** (Fig. 10 e–g): [`rig_cep_plot`].
+//! - **The rig's CEP plots** (Fig. 10 e–g): [`rig_cep_plot`](crate::sec7::rig_cep_plot).
 //!
 //! Units: mm and degrees in every file and table; radians inside.
 
 use crate::demo::{DemoError, DemoOptions};
 use crate::preset::Preset;
-use crate::sec7::Sec7Report;
 use crate::seeds::ClaimRow;
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use rigcal_calibration::path_figures::{write_cep_traces, CepTraceFiles};
 use rigcal_calibration::{self as calibration, CalibrationError, PathFigures};
 use rigcal_core::kinematics::Robot;
 use rigcal_core::rig::Rig;
@@ -29,30 +27,12 @@ use rigcal_model::division::{Bounds, DivisionError, DivisionSpace, Space};
 use rigcal_model::learners::{FcmacTraining, LearnerKind};
 use rigcal_model::model::ModelFile;
 use rigcal_model::report::{joint_path, PathSpec};
-use rigcal_sim::world::Scenario;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The paper's scenario and instrument, as the demo's section 6 uses them.
 const PAPER_RIG: &str = "rigs/rv-m2-ideal.toml";
 const PAPER_SCENARIO: &str = "sim/paper-fig6.toml";
-
-/// Mean length of a 3-D isotropic Gaussian vector of σ 1 per coordinate: √(8/π) (the mean of
-/// the Maxwell distribution).
-const MEAN_NORM_PER_SIGMA: f64 = 1.595_769_121_605_731;
-
-/// σ per coordinate (mm) of Gaussian measurement noise whose mean length is `share` of the
-/// mean uncalibrated error of `sc` along the Fig. 6 path (101 points): the paper's "random
-/// measurement errors (about 3 % of the total error)" read as `share` = 0.03, the way
-/// `sim/paper-sim-noise.toml` reads it (0.016 mm there).
-pub fn noise_sigma_mm(sc: &Scenario, share: f64) -> f64 {
-    let dof = sc.rig.chain.dof();
-    let total = sc
-        .world()
-        .error_split(&rigcal_sim::world::fig6_path(101, dof))
-        .mean_total();
-    share * total / MEAN_NORM_PER_SIGMA
-}
 
 /// The seed of the ten paths' draw: fixed before any path was evaluated (the issue's number).
 pub const TEN_PATHS_SEED: u64 = 32;
@@ -686,23 +666,6 @@ fn rig_path_rows(
 /// The paper's bound on conventional calibration along the rig's path (section 7: "less than
 /// 1.2 mm").
 const RIG_CONVENTIONAL_MM: f64 = 1.2;
-
-/// Seed 000's Fig. 10 e–g for the rig: the traced CEPs (Δθ1, Δd1, Δa1, Δα1) of conventional
-/// calibration, the regions and the FCMAC along section 7's path, from the experiment's model
-/// file, into `dir/sec7-path-ceps.svg` and `.csv`.
-pub fn rig_cep_plot(
-    report: &Sec7Report,
-    preset: &Preset,
-    dir: &Path,
-) -> Result<CepTraceFiles, CalibrationError> {
-    write_cep_traces(
-        &report.model_file,
-        &report.path,
-        &preset.traced_ceps(),
-        dir,
-        "sec7-path-ceps",
-    )
-}
 
 /// Where a sweep's extras are written in the sweep's directory: `extras.md` (the tables)
 /// and `ten-paths.csv` (every row of the ten paths).

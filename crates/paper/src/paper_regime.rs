@@ -5,6 +5,7 @@
 
 use crate::preset::SEED_000;
 use rigcal_calibration::path_figures::{MethodFigures, PathFigures};
+use rigcal_core::kinematics::Robot;
 use rigcal_model::division::{Selection, Space};
 use rigcal_model::model::{ModelBody, ModelFile};
 use serde::Serialize;
@@ -193,4 +194,21 @@ impl PaperRegimeSummary {
         }
         s
     }
+}
+
+/// Mean length of a 3-D isotropic Gaussian vector of σ 1 per coordinate: √(8/π) (the mean of
+/// the Maxwell distribution).
+const MEAN_NORM_PER_SIGMA: f64 = 1.595_769_121_605_731;
+
+/// σ per coordinate (mm) of Gaussian measurement noise whose mean length is `share` of the
+/// mean uncalibrated error of `sc` along the Fig. 6 path (101 points): the paper's "random
+/// measurement errors (about 3 % of the total error)" read as `share` = 0.03, the way
+/// `sim/paper-sim-noise.toml` reads it (0.016 mm there).
+pub fn noise_sigma_mm(sc: &rigcal_sim::world::Scenario, share: f64) -> f64 {
+    let dof = sc.rig.chain.dof();
+    let total = sc
+        .world()
+        .error_split(&rigcal_sim::world::fig6_path(101, dof))
+        .mean_total();
+    share * total / MEAN_NORM_PER_SIGMA
 }

@@ -823,3 +823,20 @@ impl Sec7Report {
         Ok(files)
     }
 }
+
+/// Seed 000's Fig. 10 e–g for the rig: the traced CEPs (Δθ1, Δd1, Δa1, Δα1) of conventional
+/// calibration, the regions and the FCMAC along section 7's path, from the experiment's model
+/// file, into `dir/sec7-path-ceps.svg` and `.csv`.
+pub fn rig_cep_plot(
+    report: &Sec7Report,
+    preset: &Preset,
+    dir: &Path,
+) -> Result<rigcal_calibration::path_figures::CepTraceFiles, CalibrationError> {
+    rigcal_calibration::path_figures::write_cep_traces(
+        &report.model_file,
+        &report.path,
+        &preset.traced_ceps(),
+        dir,
+        "sec7-path-ceps",
+    )
+}
