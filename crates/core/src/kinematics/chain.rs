@@ -238,6 +238,28 @@ impl SerialChain {
         t
     }
 
+    /// [`Self::frame_before_joint`] for every joint `0..=n` (n joints; index n is the frame
+    /// past the last joint, before the marker) in one pass along the chain: the same products
+    /// in the same order, so each equals `frame_before_joint(q, e, j)` exactly, at the cost of
+    /// one pose instead of n.
+    pub fn frames_before_joints(&self, q: &[f64], e: &ErrorParams) -> Vec<Isometry3<f64>> {
+        let n = self.joints.len();
+        let mut frames: Vec<Option<Isometry3<f64>>> = vec![None; n + 1];
+        let mut t = Isometry3::identity();
+        for el in &self.elems {
+            if self.layout.ids()[el.param].transform == TransformId::Marker {
+                break;
+            }
+            if let Some(j) = el.joint {
+                if j <= n && frames[j].is_none() {
+                    frames[j] = Some(t);
+                }
+            }
+            t = self.apply(t, el, q, e);
+        }
+        frames.into_iter().map(|f| f.unwrap_or(t)).collect()
+    }
+
     /// The measurement frame F with its error parameters applied (maps world to instrument).
     pub fn frame_pose(&self, e: &ErrorParams) -> Isometry3<f64> {
         let mut t = Isometry3::identity();

@@ -289,13 +289,16 @@ fn gravity(chain: &SerialChain, e: &ErrorParams) -> Vector3<f64> {
 /// Torques (N·m per kg) about joint `j` at `q` of a unit mass at each generic point beyond it.
 pub fn unit_torques(d: &Data, q: &[f64], j: usize) -> Vec<f64> {
     let chain = &d.chain;
-    let n = chain.joints().len();
-    let axis = chain.frame_before_joint(q, &d.e, j);
+    // Every joint's frame in one pass (the diagnosis asks this for every pose, joint and
+    // candidate: one pass per joint made it quadratic in the joints).
+    let frames = chain.frames_before_joints(q, &d.e);
+    let axis = frames[j];
     let z = axis.rotation * Vector3::z();
     let o = axis.translation.vector;
     let weight = gravity(chain, &d.e);
-    let mut points: Vec<Vector3<f64>> = (j + 1..=n)
-        .map(|k| chain.frame_before_joint(q, &d.e, k).translation.vector)
+    let mut points: Vec<Vector3<f64>> = frames[j + 1..]
+        .iter()
+        .map(|f| f.translation.vector)
         .collect();
     points.push(chain.position(q, &d.e));
     points
