@@ -508,6 +508,10 @@ pub struct LeastSquares {
     pub rank: usize,
 }
 
+/// [`lstsq`]'s rank tolerance: a singular value of the column-scaled design at or below this
+/// share of the largest is dropped.
+pub(crate) const LSTSQ_RANK_TOL: f64 = 1e-10;
+
 /// Least squares with column scaling and an SVD pseudo-inverse (directions A cannot see get no
 /// weight, so nearly absorbed candidates do not blow up the solution).
 ///
@@ -545,7 +549,7 @@ pub fn lstsq(a: &DMatrix<f64>, b: &DVector<f64>) -> LeastSquares {
         return failed(p);
     };
     let smax = svd.singular_values.max();
-    let tol = smax * 1e-10;
+    let tol = smax * LSTSQ_RANK_TOL;
     let rank = svd.singular_values.iter().filter(|&&v| v > tol).count();
     let (Some(u), Some(vt)) = (svd.u, svd.v_t) else {
         return failed(p);

@@ -7,11 +7,11 @@
 //!
 //! Units: residuals in mm.
 
-use super::linalg::{hcat, lstsq, rows_of, rows_of_vector};
+use super::linalg::{hcat, lstsq, rows_of, rows_of_vector, LSTSQ_RANK_TOL};
 use super::refit::Refit;
 use super::select::{select_terms, Selection};
 use super::{Candidate, Data, Standard};
-use crate::identification::dense::{bounded_svd, householder_r};
+use crate::identification::dense::{bounded_svd, tall_r};
 use crate::identification::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
 use crate::identification::{IdentifyOptions, StructureJudge};
 use nalgebra::{DMatrix, DVector, Vector3};
@@ -31,10 +31,6 @@ pub fn judge_outliers(
     })?;
     Ok(found)
 }
-
-/// [`lstsq`]'s rank tolerance: a singular value of the column-scaled design at or below
-/// this share of the largest is dropped.
-const LSTSQ_RANK_TOL: f64 = 1e-10;
 
 /// How far (as a factor) every singular value must stay from [`LSTSQ_RANK_TOL`] for the
 /// downdated fit to stand in for `lstsq`: kept ones above `TOL·MARGIN`, dropped ones below
@@ -234,7 +230,7 @@ impl RowBasis {
         for (c, sq) in column_sq.iter().enumerate() {
             s.column_mut(c).scale_mut(1.0 / sq.sqrt().max(1e-300));
         }
-        let r_factor = householder_r(s.clone());
+        let r_factor = tall_r(&s);
         let svd = bounded_svd(r_factor.clone(), true, true)?;
         let (w_left, v_t) = (svd.u.as_ref()?, svd.v_t.as_ref()?);
         let sv = &svd.singular_values;

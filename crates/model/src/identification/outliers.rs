@@ -24,8 +24,10 @@
 //! [`OutlierSettings::gross_max_fraction`] = 20 % of the rows may go that way, each named as
 //! every removed row is. Why this matters: three bad rows of 30 are 10 %, and left in they
 //! raise the residual-variance floor five-fold and hide every effect at the floor. The first
-//! row past the share that is only a suspect ends the search with the error, as before. Leverage is ignored: a row's
-//! residual variance is at most σ², so the test is conservative for rows the fit leans on.
+//! row past the share that is only a suspect ends the search with the error, as before.
+//!
+//! Leverage is ignored: a row's residual variance is at most σ², so the test is conservative
+//! for rows the fit leans on.
 //!
 //! The caller decides what "the model" is: `rigcal identify` refits the kinematics, `rigcal
 //! diagnose` refits the kinematics with the effects it has named (diagnose first, then judge
@@ -232,26 +234,38 @@ mod tests {
         assert_eq!(kept.len(), 58);
     }
 
-    /// 30 rows of deterministic ±0.1 mm "noise" about a constant (3 parameters), with `off`
-    /// added to rows 3, 14 and 25: three rows of 30 are 10 %, twice the suspect share.
-    fn three_of_thirty(
-        off: f64,
-    ) -> Result<(Vec<Outlier>, Vec<usize>), OutlierError<std::io::Error>> {
-        let mut data: Vec<Vector3<f64>> = (0..30)
+    /// 30 rows of deterministic ±0.1 mm "noise" about a constant.
+    fn thirty_rows() -> Vec<Vector3<f64>> {
+        (0..30)
             .map(|i| {
                 let s = |k: usize| (((i * 7 + k * 13) % 11) as f64 - 5.0) / 50.0;
                 Vector3::new(s(0), s(1), s(2))
             })
-            .collect();
-        for i in [3, 14, 25] {
-            data[i] += Vector3::new(off, -off, off) / 3f64.sqrt();
-        }
-        let ids: Vec<(u64, Option<u64>)> = (0..30).map(|i| (i as u64 + 1, None)).collect();
+            .collect()
+    }
+
+    /// The search on `data` with the model "a constant" (3 parameters) refitted on the rows kept.
+    fn search_about_the_mean(
+        data: &[Vector3<f64>],
+    ) -> Result<(Vec<Outlier>, Vec<usize>), OutlierError<std::io::Error>> {
+        let ids: Vec<(u64, Option<u64>)> = (0..data.len()).map(|i| (i as u64 + 1, None)).collect();
         remove_outliers(&ids, &OutlierSettings::default(), |kept| {
             let mean: Vector3<f64> =
                 kept.iter().map(|&i| data[i]).sum::<Vector3<f64>>() / kept.len() as f64;
             Ok::<_, std::io::Error>((data.iter().map(|d| d - mean).collect(), 3))
         })
+    }
+
+    /// [`thirty_rows`] with `off` added to rows 3, 14 and 25: three rows of 30 are 10 %,
+    /// twice the suspect share.
+    fn three_of_thirty(
+        off: f64,
+    ) -> Result<(Vec<Outlier>, Vec<usize>), OutlierError<std::io::Error>> {
+        let mut data = thirty_rows();
+        for i in [3, 14, 25] {
+            data[i] += Vector3::new(off, -off, off) / 3f64.sqrt();
+        }
+        search_about_the_mean(&data)
     }
 
     #[test]
@@ -281,24 +295,13 @@ mod tests {
     #[test]
     fn more_than_a_fifth_gross_is_refused() {
         // 7 of 30 rows (23 %) 3 mm off along ±x, ±y, ±z: gross, but more than a fifth.
-        let mut data: Vec<Vector3<f64>> = (0..30)
-            .map(|i| {
-                let s = |k: usize| (((i * 7 + k * 13) % 11) as f64 - 5.0) / 50.0;
-                Vector3::new(s(0), s(1), s(2))
-            })
-            .collect();
+        let mut data = thirty_rows();
         for i in 0..7 {
             let mut off = Vector3::zeros();
             off[i % 3] = if i % 2 == 0 { 3.0 } else { -3.0 } + 0.1 * i as f64;
             data[4 * i + 1] += off;
         }
-        let ids: Vec<(u64, Option<u64>)> = (0..30).map(|i| (i as u64 + 1, None)).collect();
-        let err = remove_outliers(&ids, &OutlierSettings::default(), |kept| {
-            let mean: Vector3<f64> =
-                kept.iter().map(|&i| data[i]).sum::<Vector3<f64>>() / kept.len() as f64;
-            Ok::<_, std::io::Error>((data.iter().map(|d| d - mean).collect(), 3))
-        })
-        .expect_err("more than a fifth");
+        let err = search_about_the_mean(&data).expect_err("more than a fifth");
         assert!(err.to_string().contains("more than 20 %"), "{err}");
     }
 }
