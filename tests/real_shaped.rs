@@ -11,6 +11,8 @@
 //! default 20, nulls 5× that per realism class; `RIGCAL_REALISM=rough|few|sessions|few-no-gross`
 //! runs one class; `RIGCAL_RATE_SEED_BASE` its first seed, default 5 000) prints the table of
 //! docs/diagnosis.md;
+//! `RIGCAL_RATE_DENT_LINES=1` also prints every comparison of a harmonic with a local dent
+//! (`diagnosis::ambiguity`), passed or not;
 //! `a_fast_subset_meets_the_targets` runs a few of each in CI. Seeds: the rates use 5 000 + s,
 //! the fast subset 9 000 + s. `RISE_Z` was chosen on the sessions class at 5 000–5 019; that
 //! class re-run from 6 000 (docs/diagnosis.md) gives the same figures. Units: mm.
@@ -67,6 +69,23 @@ fn diagnose_case(mut c: Case, realism: Realism, seed: u64) -> Outcome {
     }
 }
 
+/// With `RIGCAL_RATE_DENT_LINES` set, prints every comparison of a harmonic with a local dent
+/// in `o`'s report, kept or not, after `what`: what a threshold on it decides.
+fn print_dent_lines(what: &str, o: &Outcome) {
+    if std::env::var_os("RIGCAL_RATE_DENT_LINES").is_none() {
+        return;
+    }
+    let r = &o.report;
+    let lines = r.notes.iter().cloned().chain(
+        r.below_evidence
+            .iter()
+            .map(|w| format!("{}: {}", w.label, w.reason)),
+    );
+    for l in lines.filter(|l| l.contains("local dent")) {
+        eprintln!("dent-line {what}: {l}");
+    }
+}
+
 /// A null recording of the class: names no library effect.
 fn null_ok(realism: Realism, seed: u64) -> bool {
     let c = null_n(seed, NOISE_MM, realism.poses(seed));
@@ -87,6 +106,7 @@ fn library_ok(realism: Realism, case: &LibraryCase, seed: u64, size: f64) -> (bo
     let c = in_library_n(case, seed, Some(size), realism.poses(seed));
     let label = c.label.clone();
     let o = diagnose_case(c, realism, seed);
+    print_dent_lines(&format!("library {} seed {seed}", case.name), &o);
     let ok = o.named == vec![case.name.to_string()];
     if !ok {
         eprintln!(
@@ -104,6 +124,7 @@ fn shape_ok(realism: Realism, class: Class, seed: u64, size: f64) -> bool {
     let c = out_of_library_n(class, seed, size, realism.poses(seed));
     let label = c.label.clone();
     let o = diagnose_case(c, realism, seed);
+    print_dent_lines(&format!("shape {} seed {seed}", class.name()), &o);
     if !o.named.is_empty() {
         eprintln!(
             "{} {label} seed {seed}: {:?}\n{}",
@@ -257,5 +278,66 @@ fn three_gross_rows_of_thirty_are_removed_and_an_effect_at_three_floors_named() 
             o.report.text()
         );
         assert_eq!(o.named, vec![name.to_string()], "{}", o.report.text());
+    }
+}
+
+/// A warm-up drift at 3× the floor in recordings of 30–60 rows is named exactly: it is judged
+/// on folds interleaved in time (`crossval::interleaved_folds`), so each held-out fold is
+/// predicted inside the session's span instead of a third of the warm-up being extrapolated.
+/// Beside it, nulls of the same sizes (same seeds) claim nothing. Seeds 7 501–7 504 (30, 40,
+/// 50, 60 rows), fixed before the test was first run, with its pass count (7 of the 8 drift
+/// cases at least: the 95 % target allows one miss in twenty, not none in eight).
+#[test]
+fn a_drift_at_three_floors_in_few_rows_is_named_on_time_interleaved_folds() {
+    let cases = library_cases();
+    let mut named = 0;
+    let mut report = String::new();
+    for name in ["thermal_drift:z", "thermal_drift:2"] {
+        let case = cases.iter().find(|c| c.name == name).expect("case");
+        for seed in 7_501..=7_504 {
+            let c = in_library_n(case, seed, Some(3.0), Realism::FewPoses.poses(seed));
+            assert!((30..=60).contains(&c.recording.rows.len()));
+            let o = diagnose_case(c, Realism::FewPoses, seed);
+            if o.named == vec![name.to_string()] {
+                named += 1;
+                let g = o.report.effects[0].heldout_gain.as_ref().expect("gain");
+                assert!(g.interleaved, "{}", o.report.text());
+            } else {
+                report.push_str(&format!("{name} seed {seed}: {}\n", o.report.text()));
+            }
+        }
+    }
+    assert!(named >= 7, "{named}/8 named:\n{report}");
+    for seed in 7_501..=7_504 {
+        assert!(null_ok(Realism::FewPoses, seed), "null seed {seed}");
+    }
+}
+
+/// A local dent of one joint (5–8 % of its range wide) in 20–60 poses is not named as that
+/// joint's transmission error: the harmonic must predict held-out blocks better than the best
+/// local dent of the joint's angle by 2 σ (`diagnosis::ambiguity`), and when it does not the
+/// report says "a harmonic or a local dent, this recording cannot tell" or reports the shape
+/// as unexplained structure outside the library. Seeds 7 006, 7 008, 7 010, 7 017 and 7 019 at their
+/// rate-table sizes: the five dents of the tuning seeds (7 000–7 019, not reported) that the
+/// rule before this one named as transmission errors. Beside them, nulls claim nothing.
+#[test]
+fn a_local_dent_in_few_poses_is_not_named_as_a_transmission_error() {
+    for seed in [7_006u64, 7_008, 7_010, 7_017, 7_019] {
+        let size = size_of(seed - 7_000, 20);
+        let c = out_of_library_n(Class::Dent, seed, size, Realism::FewPoses.poses(seed));
+        let o = diagnose_case(c, Realism::FewPoses, seed);
+        assert!(o.named.is_empty(), "seed {seed}: {}", o.report.text());
+        let r = &o.report;
+        let said = r.unexplained
+            || !r.out_of_library.is_empty()
+            || r.below_evidence
+                .iter()
+                .any(|w| w.reason.contains("this recording cannot tell"));
+        assert!(
+            said,
+            "seed {seed}: neither the shape nor \"cannot tell\": {}",
+            r.text()
+        );
+        assert!(null_ok(Realism::FewPoses, seed), "null seed {seed}");
     }
 }

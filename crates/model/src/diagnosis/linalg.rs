@@ -66,7 +66,7 @@ fn orth_basis_by_qr(s: &DMatrix<f64>, tol: f64) -> Option<DMatrix<f64>> {
     let u = s * v_scaled;
     // Rounding in S·v is amplified by 1/σ for the weakest kept directions: one Cholesky pass
     // (U ← U·L⁻ᵀ with UᵀU = L·Lᵀ) restores orthonormality without changing the span.
-    let chol = nalgebra::Cholesky::new(gram(&u))?;
+    let chol = nalgebra::Cholesky::new(dense::gram_by_kernel(&u))?;
     let l_inv = chol
         .l()
         .solve_lower_triangular(&DMatrix::identity(keep.len(), keep.len()))?;
@@ -94,8 +94,19 @@ pub fn project_out(q: &DMatrix<f64>, x: &DMatrix<f64>) -> DMatrix<f64> {
     if q.ncols() == 0 {
         return x.clone();
     }
-    let once = x - q * (q.transpose() * x);
-    &once - q * (q.transpose() * &once)
+    let n = q.nrows();
+    let mut out = x.clone();
+    for _ in 0..2 {
+        let c = tr_mul(q, &out);
+        dense::sub_mul(&mut out, q.as_slice(), n, &c);
+    }
+    out
+}
+
+/// QᵀX without copying Qᵀ ([`dense::transpose_mul_view`]): the same numbers as
+/// `q.transpose() * x`, to the bit.
+pub fn tr_mul(q: &DMatrix<f64>, x: &DMatrix<f64>) -> DMatrix<f64> {
+    dense::transpose_mul_view(q.as_slice(), q.nrows(), &x.as_view())
 }
 
 /// A candidate's visible part after projecting out `q`: an orthonormal basis and the visible
@@ -292,7 +303,7 @@ impl TrackedTerm {
         let xp = project_out(q, x);
         TrackedTerm {
             norms: x.column_iter().map(|c| c.norm()).collect(),
-            gram: gram(&xp),
+            gram: dense::gram_by_kernel(&xp),
             products: DMatrix::zeros(0, x.ncols()),
             xp,
             made_at: q.ncols(),
@@ -306,7 +317,13 @@ impl TrackedTerm {
         if q.ncols() > self.upto {
             let n = q.nrows();
             let new = &q.as_slice()[self.upto * n..];
-            let c = dense::transpose_mul(new, n, &self.xp);
+            // A model grown by a few directions, or a term of a few columns: one dot product
+            // per entry (nalgebra's kernel does not take such shapes).
+            let c = if new.len() <= 5 * n || self.xp.ncols() <= 5 {
+                dense::transpose_mul_dots(new, n, &self.xp)
+            } else {
+                dense::transpose_mul_view(new, n, &self.xp.as_view())
+            };
             self.gram -= dense::transpose_mul(c.as_slice(), c.nrows(), &c);
             let old = std::mem::replace(&mut self.products, DMatrix::zeros(0, 0));
             let m = old.nrows();
@@ -331,18 +348,21 @@ impl TrackedTerm {
         if new.is_empty() {
             return once;
         }
-        let u = q.columns(self.made_at, self.upto - self.made_at);
-        let again = dense::transpose_mul(new, n, &once);
-        once - u * again
+        let mut once = once;
+        let again = dense::transpose_mul_view(new, n, &once.as_view());
+        dense::sub_mul(&mut once, new, n, &again);
+        once
     }
 
     /// X − U·(UᵀX) with the kept products (one pass, for leverages).
     fn past_once(&self, q: &DMatrix<f64>) -> DMatrix<f64> {
-        if self.upto == self.made_at {
-            return self.xp.clone();
+        let mut once = self.xp.clone();
+        if self.upto > self.made_at {
+            let n = q.nrows();
+            let u = &q.as_slice()[self.made_at * n..self.upto * n];
+            dense::sub_mul(&mut once, u, n, &self.products);
         }
-        let u = q.columns(self.made_at, self.upto - self.made_at);
-        &self.xp - u * &self.products
+        once
     }
 
     /// [`visible_rank_and_dss`] of the term past the model it was brought up to, against the
@@ -692,6 +712,21 @@ mod tests {
         }
         assert_eq!(orth_basis(&a, 1e-9).ncols(), 7);
         assert_eq!(orth_basis(&a, 1e-4).ncols(), 6);
+    }
+
+    #[test]
+    fn products_with_the_transpose_in_place_equal_the_copied_ones_to_the_bit() {
+        let q = orth_basis(
+            &DMatrix::from_fn(3000, 9, |r, c| ((r * (c + 2)) as f64 * 1e-3).sin()),
+            1e-9,
+        );
+        let x = DMatrix::from_fn(3000, 14, |r, c| ((r + 31 * c) as f64 * 0.007).cos());
+        let r = DMatrix::from_fn(3000, 1, |i, _| (i as f64 * 0.003).sin());
+        assert_eq!(tr_mul(&q, &x), q.transpose() * &x);
+        assert_eq!(tr_mul(&q, &r), q.transpose() * &r);
+        let one = q.columns(0, 1).into_owned();
+        assert_eq!(tr_mul(&one, &r), one.transpose() * &r);
+        assert_eq!(tr_mul(&one, &x), one.transpose() * &x);
     }
 
     #[test]

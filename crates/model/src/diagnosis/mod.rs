@@ -58,6 +58,7 @@
 //! compares with the RMS figures of [`ResidualStats`](crate::identification::ResidualStats).
 //! The diagnosis reads the recording and the rig only, never a simulated world.
 
+pub mod ambiguity;
 pub mod crossval;
 pub mod discrepancy;
 pub mod effects;

@@ -17,6 +17,35 @@ use crate::identification::{IdentifyOptions, StructureJudge};
 use nalgebra::{DMatrix, DVector, Vector3};
 use std::convert::Infallible;
 
+/// A shape of the discrepancy term takes part in the outlier judgement only while it has at
+/// most one coefficient per this many measurements. A shape with about one coefficient per
+/// measurement can follow single rows: fitted with them, it bends to a gross row and hides it
+/// (a position shape of 24 coefficients on 29 measurements took two of three rows 17× the
+/// floor), so the rows must be judged without it. Three measurements per coefficient leave
+/// each coefficient's local fit at least two measurements of slack; the library's effects
+/// (1–3 coefficients each) and the geometry stay, and a shape that meets the bound
+/// (the UR10's 23-coefficient splines on 990 measurements) stays too.
+pub const MEASUREMENTS_PER_SHAPE_COEFFICIENT: usize = 3;
+
+/// The model the outliers are judged against: `full` (geometry, effects and shapes) when every
+/// shape of `sel` has at most one coefficient per [`MEASUREMENTS_PER_SHAPE_COEFFICIENT`]
+/// measurements, else the same refit without the shapes that have more.
+pub fn outlier_model<'a>(
+    std: &Standard,
+    screen: &super::screen::Screen,
+    sel: &Selection,
+    full: &'a Refit,
+) -> std::borrow::Cow<'a, Refit> {
+    let m = std.data.len();
+    let fits = |k: usize| k * MEASUREMENTS_PER_SHAPE_COEFFICIENT <= m;
+    if sel.shapes.iter().all(|s| fits(s.x.ncols())) {
+        return std::borrow::Cow::Borrowed(full);
+    }
+    let mut narrow = sel.clone();
+    narrow.shapes.retain(|s| fits(s.x.ncols()));
+    std::borrow::Cow::Owned(super::refit::refit(std, screen, &narrow, true))
+}
+
 /// The rows that fail the outlier test against the refitted model `refit` (its design
 /// refitted on the rows kept at each round of the search, by [`RowDowndates`]).
 pub fn judge_outliers(

@@ -10,12 +10,13 @@
 //! Units: stacked residuals in mm (3 rows per measurement); coefficients in each candidate's
 //! units (see the candidate files).
 
+use super::ambiguity::separate_harmonics_from_dents;
 use super::crossval::{self, HeldoutGain};
 use super::discrepancy::describe;
 use super::effects::{describe_effects, EffectInputs};
 use super::heldout::{Heldout, HeldoutRecording};
 use super::linalg::rms3;
-use super::outliers::judge_outliers;
+use super::outliers::{judge_outliers, outlier_model};
 use super::refit::{refit, refit_shapes_on_named, Refit};
 use super::report::WeakEffect;
 use super::report::{locate, FitSummary, Mismatch, Report, WhereReport};
@@ -76,14 +77,14 @@ pub fn run(
     }
     let described = describe(&inputs, lib, heldout, rms3(&named.residual));
     let mut notes = notes(std);
-    notes.extend(judged.note);
+    notes.extend(judged.notes);
     notes.extend(selection.dropped.iter().map(|&k| {
         format!(
             "{} was not claimed: it only soaked up part of a shape outside the library (the located shape explains what it fitted)",
             lib[k].label()
         )
     }));
-    let outliers = match judge_outliers(std, &full) {
+    let outliers = match judge_outliers(std, &outlier_model(std, &screen, &selection, &full)) {
         Ok(found) => found,
         Err(e) => {
             notes.push(format!("outliers not removed: {e}"));
@@ -112,8 +113,9 @@ struct Judged {
     gains: Vec<Option<HeldoutGain>>,
     /// The effects set aside.
     weak: Vec<WeakEffect>,
-    /// Why the recording could not be judged, when it could not.
-    note: Option<String>,
+    /// Why the recording could not be judged, when it could not; why a harmonic was preferred
+    /// to a local dent, when one was ([`super::ambiguity`]).
+    notes: Vec<String>,
 }
 
 /// Judges the chosen effects on held-out data ([`crossval::judge`]) and sets aside from
@@ -127,7 +129,8 @@ fn judge_on_heldout(
     (heldout, sessions): (&[HeldoutRecording], &[(HeldoutRecording, DMatrix<f64>)]),
     data: &super::Data,
 ) -> Judged {
-    let j = crossval::judge(screen, candidates, selection, lib, heldout, sessions, data);
+    let mut j = crossval::judge(screen, candidates, selection, lib, heldout, sessions, data);
+    let preferred = separate_harmonics_from_dents(&mut j, screen, candidates, selection, lib, data);
     let n = selection.chosen.len();
     let weak_idx: Vec<usize> = j.weak.iter().map(|w| w.0).collect();
     let weak = j
@@ -151,7 +154,7 @@ fn judge_on_heldout(
     Judged {
         gains,
         weak,
-        note: j.not_judged,
+        notes: j.not_judged.into_iter().chain(preferred).collect(),
     }
 }
 

@@ -6,7 +6,7 @@
 use super::crossval::HeldoutGain;
 use super::shapes::ShapeSpec;
 use super::{Data, AXES};
-use crate::effects::compliance::unit_torques;
+use crate::effects::compliance::unit_torques_all;
 use crate::effects::EffectKind;
 use nalgebra::DVector;
 use rigcal_core::kinematics::{JointKind, Robot};
@@ -447,6 +447,8 @@ fn joint_range(d: &Data, j: usize, norm2: &[f64], overall: f64) -> JointRange {
 /// direction and gravity torque, time, and the table coordinates.
 fn features(d: &Data) -> Vec<(String, Vec<f64>)> {
     let mut feats: Vec<(String, Vec<f64>)> = Vec::new();
+    // Every joint's gravity torques at each pose from one pass over the chain.
+    let torques: Vec<Vec<Vec<f64>>> = d.obs.iter().map(|o| unit_torques_all(d, &o.q)).collect();
     for &j in &d.moving {
         feats.push((
             format!("joint {} angle", j + 1),
@@ -458,10 +460,7 @@ fn features(d: &Data) -> Vec<(String, Vec<f64>)> {
         ));
         feats.push((
             format!("gravity torque of joint {}", j + 1),
-            d.obs
-                .iter()
-                .map(|o| unit_torques(d, &o.q, j).iter().sum())
-                .collect(),
+            torques.iter().map(|t| t[j].iter().sum()).collect(),
         ));
     }
     if let Some(t) = &d.t_s {

@@ -44,6 +44,17 @@ impl Screen {
         scale_rows(m, &self.weights)
     }
 
+    /// The stacked residual after the standard model, weighted as the tests weigh rows (mm).
+    pub fn weighted_residual(&self) -> DVector<f64> {
+        DVector::from_iterator(
+            self.residual_raw.len(),
+            self.residual_raw
+                .iter()
+                .zip(&self.weights)
+                .map(|(r, w)| r * w),
+        )
+    }
+
     /// Rows of the stacked residual (3 per measurement).
     pub fn rows(&self) -> usize {
         self.residual_raw.len()

@@ -12,13 +12,13 @@
 //! Units: stacked regressors in mm per unit coefficient (3 rows per measurement).
 
 use super::linalg::{
-    hcat, orth_basis, partial_f_ln_of, project_out, visible_basis, visible_basis_in,
-    visible_basis_of_projection, Projection, TrackedTerm,
+    hcat, orth_basis, partial_f_ln_of, project_out, tr_mul, visible_basis, visible_basis_in,
+    visible_basis_of_projection, TrackedTerm,
 };
 use super::screen::{screen, Screen, ALPHA_PART};
 use super::shapes::{refine_position, shape_bases, Form, ShapeSpec, Variable};
 use super::{Candidate, Data, DiagnoseError, Standard, SEPARABLE_CORRELATION};
-use crate::identification::dense::tall_r;
+use crate::identification::dense::{sub_mul_slice, tall_r, transpose_mul_view};
 use nalgebra::{DMatrix, DVector, Matrix3};
 use std::collections::HashMap;
 
@@ -89,9 +89,12 @@ pub struct Chosen {
 pub struct Shapes {
     /// The bases.
     pub specs: Vec<ShapeSpec>,
-    /// Their columns, unweighted; None when the recording cannot show one.
+    /// Their columns, unweighted (None when the recording cannot show one), kept only where
+    /// the tests weight rows: empty when every weight is 1, as `weighted` then holds the same
+    /// columns (on 12 000 rows one copy of all the bases is a few hundred megabytes). Read
+    /// through [`Shapes::unweighted`].
     pub regressors: Vec<Option<DMatrix<f64>>>,
-    /// The same with the tests' row weights.
+    /// The columns with the tests' row weights; None when the recording cannot show one.
     pub weighted: Vec<Option<DMatrix<f64>>>,
 }
 
@@ -106,9 +109,22 @@ impl Shapes {
     /// Adds a basis.
     pub fn push(&mut self, spec: ShapeSpec, d: &Data, screen: &Screen) {
         let x = spec.columns(d);
-        self.weighted.push(x.as_ref().map(|x| screen.weigh(x)));
-        self.regressors.push(x);
+        if screen.weighted() {
+            self.weighted.push(x.as_ref().map(|x| screen.weigh(x)));
+            self.regressors.push(x);
+        } else {
+            self.weighted.push(x);
+        }
         self.specs.push(spec);
+    }
+
+    /// The columns of basis `k` without the row weights.
+    pub fn unweighted(&self, k: usize) -> Option<&DMatrix<f64>> {
+        if self.regressors.is_empty() {
+            self.weighted[k].as_ref()
+        } else {
+            self.regressors[k].as_ref()
+        }
     }
 }
 
@@ -141,11 +157,17 @@ fn refinement(
 /// Builds the shape bases of `d` and their columns.
 pub fn build_shapes(screen: &Screen, d: &Data) -> Shapes {
     let specs = shape_bases(d);
-    let regressors: Vec<Option<DMatrix<f64>>> = specs.iter().map(|s| s.columns(d)).collect();
-    let weighted = regressors
-        .iter()
-        .map(|x| x.as_ref().map(|x| screen.weigh(x)))
-        .collect();
+    let columns: Vec<Option<DMatrix<f64>>> = specs.iter().map(|s| s.columns(d)).collect();
+    // Unweighted rows: the columns are their own weighted form, held once.
+    let (regressors, weighted) = if screen.weighted() {
+        let weighted = columns
+            .iter()
+            .map(|x| x.as_ref().map(|x| screen.weigh(x)))
+            .collect();
+        (columns, weighted)
+    } else {
+        (Vec::new(), columns)
+    };
     Shapes {
         specs,
         regressors,
@@ -260,6 +282,9 @@ fn figures(
 struct Projections {
     lib: HashMap<usize, TrackedTerm>,
     shapes: HashMap<usize, TrackedTerm>,
+    /// Whether each library candidate is separable from the chosen effects: it changes only
+    /// when an effect is chosen (then cleared), not at each step.
+    separable: HashMap<usize, bool>,
 }
 
 /// A term's test figures (its basis is formed only when needed: [`full_test`]).
@@ -363,19 +388,23 @@ pub fn forward_selection(
     let mut first = true;
     loop {
         let kk = remaining.len().max(1) as f64;
-        let lib = best_step(
+        let pick = best_step(
             screen,
             &sel,
             cands,
             &remaining,
             &chosen_visible,
-            &mut projected.lib,
+            &mut projected,
         );
+        // The library pick's full test (its basis) only where it can matter: the first step's
+        // best is reported, and a pick is taken only when it passes and no shape beats it.
+        let mut pick_full = None;
         if first {
-            sel.first_best = lib.as_ref().map(|(k, t)| (*k, t.p));
+            let full = full_pick(screen, &sel, cands, &pick, &mut projected.lib);
+            sel.first_best = full.as_ref().map(|(k, t)| (*k, t.p));
+            pick_full = Some(full);
             first = false;
         }
-        let lib = lib.filter(|(_, t)| t.p < ALPHA_PART / kk);
         let shape = if sel.shapes.len() < MAX_SHAPES {
             best_shape(
                 screen,
@@ -385,6 +414,13 @@ pub fn forward_selection(
                 nb,
                 &mut projected.shapes,
             )
+        } else {
+            None
+        };
+        let lib = if pick_may_be_taken(&pick, shape.as_ref(), ALPHA_PART / kk) {
+            pick_full
+                .unwrap_or_else(|| full_pick(screen, &sel, cands, &pick, &mut projected.lib))
+                .filter(|(_, t)| t.p < ALPHA_PART / kk)
         } else {
             None
         };
@@ -408,8 +444,9 @@ pub fn forward_selection(
             sel.shapes.push(ChosenShape {
                 shape: k,
                 spec: shapes.specs[k].clone(),
-                x: shapes.regressors[k]
-                    .clone()
+                x: shapes
+                    .unweighted(k)
+                    .cloned()
                     .unwrap_or_else(|| DMatrix::zeros(nrows, 0)),
                 p: t.p,
                 size_ratio: t.size,
@@ -423,6 +460,7 @@ pub fn forward_selection(
                     .chain(bk.column_iter())
                     .collect();
                 chosen_visible = orth_basis(&DMatrix::from_columns(&cols), 1e-6);
+                projected.separable.clear();
             }
             remaining.retain(|&c| c != k);
             tracing::debug!(
@@ -550,13 +588,13 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
         .map(|c| cands.weighted[c.cand].as_ref())
         .chain(sel.shapes.iter().map(|c| shapes.weighted[c.shape].as_ref()))
         .collect();
-    let past: Vec<Option<Projection>> = columns
+    let norms: Vec<Option<Vec<f64>>> = columns
         .iter()
-        .map(|x| x.map(|x| Projection::new(&screen.basis, x)))
+        .map(|x| x.map(|x| x.column_iter().map(|c| c.norm()).collect()))
         .collect();
-    let (small, small_r) = compress_columns(&past, rw);
+    let (small, small_r) = compress_columns(&screen.basis, &columns, rw);
     // Which of the original terms are still chosen (library terms first, then shapes).
-    let mut alive: Vec<usize> = (0..past.len()).collect();
+    let mut alive: Vec<usize> = (0..columns.len()).collect();
     loop {
         let nlib = sel.chosen.len();
         let mut worst: Option<(usize, f64)> = None;
@@ -569,15 +607,14 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
             let w = orth_basis(&hcat(&others, small_r.len()), 1e-9);
             let r = &small_r - &w * (w.transpose() * &small_r);
             let model_columns = screen.basis.ncols() + w.ncols();
-            let tested = match (&past[ti], &small[ti]) {
-                (Some(p), Some(xs)) => {
-                    visible_basis_in(&p.norms, &project_out(&w, xs), nrows).map(|(u, _)| {
+            let tested = match (&norms[ti], &small[ti]) {
+                (Some(norms), Some(xs)) => visible_basis_in(norms, &project_out(&w, xs), nrows)
+                    .map(|(u, _)| {
                         let dss = (u.transpose() * &r).norm_squared();
                         let (p, ln_p, size) =
                             figures(screen, model_columns, nrows, &r, u.ncols(), dss);
                         (p, ln_p, size)
-                    })
-                }
+                    }),
                 _ => None,
             };
             let fails = match tested {
@@ -608,30 +645,48 @@ fn prune(screen: &Screen, sel: &mut Selection, cands: &Candidates, shapes: &Shap
     sel.basis = q;
 }
 
-/// The terms' parts past the standard model (`past`, None where a term has no columns) and the
-/// residual `r` beside them, compressed: each term's columns and the residual as columns of
-/// the triangular factor R of the Householder QR of [parts | r] (RᵀR = [parts | r]ᵀ[parts | r],
-/// so every norm, inner product, rank and sum of squares of least squares among them is R's).
-/// Left as they are when there are fewer rows than columns.
+/// The terms' parts past the standard model's orthonormal basis `q` (`columns`, None where a
+/// term has no columns) and the residual `r` beside them, compressed: each term's columns and
+/// the residual as columns of the triangular factor R of the Householder QR of [parts | r]
+/// (RᵀR = [parts | r]ᵀ[parts | r], so every norm, inner product, rank and sum of squares of
+/// least squares among them is R's). Left as they are when there are fewer rows than columns.
+/// The parts are made in one matrix, projected past `q` twice in place (as [`project_out`]).
 fn compress_columns(
-    past: &[Option<Projection>],
+    q: &DMatrix<f64>,
+    columns: &[Option<&DMatrix<f64>>],
     r: &DVector<f64>,
 ) -> (Vec<Option<DMatrix<f64>>>, DVector<f64>) {
-    let parts: Vec<DMatrix<f64>> = past.iter().flatten().map(|p| p.xp.clone()).collect();
-    let mut all = hcat(&parts, r.len()).insert_column(parts.iter().map(|p| p.ncols()).sum(), 0.0);
-    let last = all.ncols() - 1;
-    all.set_column(last, r);
+    let n = r.len();
+    let p: usize = columns.iter().flatten().map(|x| x.ncols()).sum();
+    let mut all = DMatrix::zeros(n, p + 1);
+    let mut at = 0;
+    for x in columns.iter().flatten() {
+        all.columns_mut(at, x.ncols()).copy_from(*x);
+        at += x.ncols();
+    }
+    all.set_column(p, r);
+    if q.ncols() > 0 {
+        let parts = &mut all.as_mut_slice()[..n * p];
+        for _ in 0..2 {
+            let c = transpose_mul_view(
+                q.as_slice(),
+                n,
+                &nalgebra::DMatrixView::from_slice(parts, n, p),
+            );
+            sub_mul_slice(parts, p, q.as_slice(), n, &c);
+        }
+    }
     let m = if all.nrows() > all.ncols() {
         tall_r(&all)
     } else {
         all
     };
     let mut at = 0;
-    let terms = past
+    let terms = columns
         .iter()
-        .map(|p| {
-            p.as_ref().map(|p| {
-                let k = p.xp.ncols();
+        .map(|x| {
+            x.map(|x| {
+                let k = x.ncols();
                 at += k;
                 m.columns(at - k, k).into_owned()
             })
@@ -720,13 +775,23 @@ fn best_shape(
 /// The 3 × 3 diagonal blocks H_ii = Q_i Q_iᵀ of the hat matrix of the orthonormal basis `q`,
 /// one per measurement (the blocks of orthogonal bases side by side add).
 fn hat_blocks(q: &DMatrix<f64>) -> Vec<Matrix3<f64>> {
-    (0..q.nrows() / 3)
-        .map(|i| {
-            let b = q.rows(3 * i, 3);
-            let h = b * b.transpose();
-            Matrix3::from_fn(|r, c| h[(r, c)])
-        })
-        .collect()
+    let n = q.nrows();
+    let mut h = vec![Matrix3::zeros(); n / 3];
+    // Column by column (contiguous reads), each entry summed over the columns in order as
+    // nalgebra's product of the 3-row block and its transpose sums it: the same numbers,
+    // without two temporaries per measurement.
+    for (j, col) in q.as_slice().chunks_exact(n.max(1)).enumerate() {
+        for (i, hi) in h.iter_mut().enumerate() {
+            let b = &col[3 * i..3 * i + 3];
+            for r in 0..3 {
+                for c in 0..3 {
+                    let v = b[r] * b[c];
+                    hi[(r, c)] = if j == 0 { v } else { v + hi[(r, c)] };
+                }
+            }
+        }
+    }
+    h
 }
 
 /// The leave-one-measurement-out prediction error (PRESS) of a model with hat blocks `hat`
@@ -746,16 +811,16 @@ fn press(hat: &[Matrix3<f64>], r: &DVector<f64>) -> f64 {
 }
 
 /// The remaining candidate that best explains what the model of `sel` leaves (smallest p-value,
-/// compared as ln p). Candidates not separable from the chosen ones (`chosen_visible`) are
-/// skipped.
+/// compared as ln p, by its quick test). Candidates not separable from the chosen ones
+/// (`chosen_visible`) are skipped.
 fn best_step(
     screen: &Screen,
     sel: &Selection,
     cands: &Candidates,
     remaining: &[usize],
     chosen_visible: &DMatrix<f64>,
-    cache: &mut HashMap<usize, TrackedTerm>,
-) -> Option<(usize, TermTest)> {
+    projected: &mut Projections,
+) -> Option<(usize, Quick)> {
     let mut best: Option<(usize, Quick)> = None;
     for &k in remaining {
         let Some(x) = &cands.weighted[k] else {
@@ -764,26 +829,70 @@ fn best_step(
         // Some combination of it is (nearly) one of the chosen effects: not separable, and
         // its coefficients would fight theirs in the refit.
         if let (Some(bk), true) = (&cands.visible_basis[k], chosen_visible.ncols() > 0) {
-            if max_correlation(bk, chosen_visible) > SEPARABLE_CORRELATION {
+            let separable = *projected
+                .separable
+                .entry(k)
+                .or_insert_with(|| max_correlation(bk, chosen_visible) <= SEPARABLE_CORRELATION);
+            if !separable {
                 continue;
             }
         }
-        let Some(q) = quick_test(screen, sel, cache, k, x) else {
+        let Some(q) = quick_test(screen, sel, &mut projected.lib, k, x) else {
             continue;
         };
         if best.as_ref().is_none_or(|b| q.ln_p < b.1.ln_p) {
             best = Some((k, q));
         }
     }
-    let (k, _) = best?;
-    let t = full_test(screen, sel, cache, k, cands.weighted[k].as_ref()?)?;
-    Some((k, t))
+    best
+}
+
+/// The full test (with its basis) of the library pick of [`best_step`].
+fn full_pick(
+    screen: &Screen,
+    sel: &Selection,
+    cands: &Candidates,
+    pick: &Option<(usize, Quick)>,
+    cache: &mut HashMap<usize, TrackedTerm>,
+) -> Option<(usize, TermTest)> {
+    let (k, _) = pick.as_ref()?;
+    let t = full_test(screen, sel, cache, *k, cands.weighted[*k].as_ref()?)?;
+    Some((*k, t))
+}
+
+/// Whether the library pick (by its quick test) could be taken at this step, as its full test
+/// would decide: its p-value below `threshold` and no shape with a smaller ln p. The quick and
+/// the full test differ by rounding only (the same rank, ΔSS to about 10⁻¹² relative), so a
+/// pick at twice the threshold, or a shape ahead by more than 10⁻⁶ of ln p, settles it without
+/// the full test; anything closer is left to the full test.
+fn pick_may_be_taken(
+    pick: &Option<(usize, Quick)>,
+    shape: Option<&(usize, TermTest)>,
+    threshold: f64,
+) -> bool {
+    let Some((_, q)) = pick else {
+        return false;
+    };
+    if q.p >= 2.0 * threshold {
+        return false;
+    }
+    match shape {
+        Some((_, t)) => t.ln_p >= q.ln_p - 1e-6 * (1.0 + q.ln_p.abs()),
+        None => true,
+    }
 }
 
 /// The largest canonical correlation between the spans of two orthonormal bases.
 fn max_correlation(a: &DMatrix<f64>, b: &DMatrix<f64>) -> f64 {
     // Not finite (never on bounded data): no correlation can be told, so call it total.
-    crate::identification::dense::bounded_svd(a.transpose() * b, false, false)
+    // A candidate's basis has a few columns: one dot product per entry then (nalgebra's kernel
+    // does not take such shapes, and its own loop is scalar).
+    let c = if a.ncols() <= 5 || b.ncols() <= 5 {
+        crate::identification::dense::transpose_mul_dots(a.as_slice(), a.nrows(), b)
+    } else {
+        tr_mul(a, b)
+    };
+    crate::identification::dense::bounded_svd(c, false, false)
         .map_or(1.0, |svd| svd.singular_values.max())
 }
 
@@ -803,4 +912,30 @@ pub fn not_separable_from(k: usize, cands: &Candidates, lib: &[Box<dyn Candidate
             (max_correlation(uk, b) > SEPARABLE_CORRELATION).then(|| lib[i].label())
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hat_blocks_are_the_blocks_of_the_basis_times_its_transpose_to_the_bit() {
+        // The product nalgebra forms for each measurement's 3-row block, against the
+        // column-by-column sums, on a basis of 12 columns and on none.
+        let q = crate::diagnosis::linalg::orth_basis(
+            &DMatrix::from_fn(60, 12, |r, c| {
+                ((r * (c + 3)) as f64 * 0.05).sin() + c as f64
+            }),
+            1e-9,
+        );
+        for q in [q, DMatrix::zeros(60, 0)] {
+            let got = hat_blocks(&q);
+            assert_eq!(got.len(), 20);
+            for (i, h) in got.iter().enumerate() {
+                let b = q.rows(3 * i, 3);
+                let want = b * b.transpose();
+                assert_eq!(*h, Matrix3::from_fn(|r, c| want[(r, c)]), "measurement {i}");
+            }
+        }
+    }
 }

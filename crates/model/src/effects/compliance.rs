@@ -292,18 +292,40 @@ pub fn unit_torques(d: &Data, q: &[f64], j: usize) -> Vec<f64> {
     // Every joint's frame in one pass (the diagnosis asks this for every pose, joint and
     // candidate: one pass per joint made it quadratic in the joints).
     let frames = chain.frames_before_joints(q, &d.e);
+    torques_about(&frames, j, &chain.position(q, &d.e), &gravity(chain, &d.e))
+}
+
+/// [`unit_torques`] of every joint at `q` (entry j: joint j's), from one pass over the chain's
+/// frames and one tip position: the same numbers as asking joint by joint.
+pub fn unit_torques_all(d: &Data, q: &[f64]) -> Vec<Vec<f64>> {
+    let chain = &d.chain;
+    let frames = chain.frames_before_joints(q, &d.e);
+    let tip = chain.position(q, &d.e);
+    let weight = gravity(chain, &d.e);
+    (0..chain.joints().len())
+        .map(|j| torques_about(&frames, j, &tip, &weight))
+        .collect()
+}
+
+/// Torques (N·m per kg) about joint `j` of a unit mass at each point beyond it: the origins of
+/// the later joints' frames (`frames`, one per joint) and the tip (mm), under `weight` (N/kg).
+fn torques_about(
+    frames: &[nalgebra::Isometry3<f64>],
+    j: usize,
+    tip: &Vector3<f64>,
+    weight: &Vector3<f64>,
+) -> Vec<f64> {
     let axis = frames[j];
     let z = axis.rotation * Vector3::z();
     let o = axis.translation.vector;
-    let weight = gravity(chain, &d.e);
     let mut points: Vec<Vector3<f64>> = frames[j + 1..]
         .iter()
         .map(|f| f.translation.vector)
         .collect();
-    points.push(chain.position(q, &d.e));
+    points.push(*tip);
     points
         .iter()
-        .map(|p| ((p - o) / 1000.0).cross(&weight).dot(&z))
+        .map(|p| ((p - o) / 1000.0).cross(weight).dot(&z))
         .collect()
 }
 

@@ -130,6 +130,148 @@ pub(crate) fn transpose_mul(a: &[f64], rows: usize, b: &DMatrix<f64>) -> DMatrix
     nalgebra::DMatrixView::from_slice(a, rows, cols).transpose() * b
 }
 
+/// AᵀB for A of `rows` rows held column-major in `a`, read in place: Aᵀ is a strided view of
+/// A's storage, so no copy of it is made (on the diagnosis's tall matrices that copy, tens of
+/// megabytes per call, cost more than the product). The same matrix-multiply kernel sees the
+/// same numbers in the same order as in [`transpose_mul`], so the result is the same to the bit.
+pub(crate) fn transpose_mul_view(
+    a: &[f64],
+    rows: usize,
+    b: &nalgebra::DMatrixView<'_, f64>,
+) -> DMatrix<f64> {
+    assert_eq!(
+        rows,
+        b.nrows(),
+        "transpose_mul_view: A and B have different row counts"
+    );
+    if rows == 0 || a.is_empty() {
+        return DMatrix::zeros(a.len().checked_div(rows).unwrap_or(0), b.ncols());
+    }
+    let cols = a.len() / rows;
+    if cols <= NALGEBRA_SMALL_DIM || rows <= NALGEBRA_SMALL_DIM || b.ncols() <= NALGEBRA_SMALL_DIM {
+        return transpose_mul_sequential(a, rows, b);
+    }
+    // Row i of Aᵀ is column i of A: a row stride of `rows`, a column stride of 1.
+    let at = nalgebra::DMatrixView::from_slice_with_strides(a, cols, rows, rows, 1);
+    at * b
+}
+
+/// Up to this many rows or columns (of any operand) nalgebra 0.35 multiplies by its own column
+/// loop instead of the matrix-multiply kernel (`SMALL_DIM` in `blas_uninit::gemm_uninit`). That
+/// loop must never see the strided view of Aᵀ: its `axcpy_uninit` walks a strided column for
+/// as many steps as the column's underlying slice is long, not as the column has entries, and
+/// reads past the storage (a crash seen here while this was written).
+const NALGEBRA_SMALL_DIM: usize = 5;
+
+/// AᵀB for A of `rows` rows held column-major in `a`, each entry one [`dot`] of two contiguous
+/// columns (vectorised; rounding as `dot`'s four partial sums): for products with a side of
+/// at most a few columns, where nalgebra leaves its matrix-multiply kernel for a scalar loop.
+pub(crate) fn transpose_mul_dots(a: &[f64], rows: usize, b: &DMatrix<f64>) -> DMatrix<f64> {
+    assert_eq!(
+        rows,
+        b.nrows(),
+        "transpose_mul_dots: A and B have different row counts"
+    );
+    let cols = a.len().checked_div(rows).unwrap_or(0);
+    let bs = b.as_slice();
+    DMatrix::from_fn(cols, b.ncols(), |i, l| {
+        dot(&a[i * rows..(i + 1) * rows], &bs[l * rows..(l + 1) * rows])
+    })
+}
+
+/// AᵀB as nalgebra's column loop computes it for the copied Aᵀ when a dimension is small: each
+/// entry the sum over rows j = 0, 1, … in order of A[j, i]·B[j, l], no fused multiply-add (so
+/// the same to the bit). Four entries at a time, each still summed in order, so the additions
+/// of one entry need not wait for another's.
+fn transpose_mul_sequential(
+    a: &[f64],
+    rows: usize,
+    b: &nalgebra::DMatrixView<'_, f64>,
+) -> DMatrix<f64> {
+    let cols = a.len() / rows;
+    let mut out = DMatrix::zeros(cols, b.ncols());
+    for l in 0..b.ncols() {
+        let bl = b.column(l);
+        let bl: Vec<f64> = bl.iter().copied().collect();
+        let mut i = 0;
+        while i < cols {
+            let w = (cols - i).min(4);
+            let mut acc = [0.0f64; 4];
+            for (c, slot) in acc.iter_mut().enumerate().take(w) {
+                *slot = a[(i + c) * rows] * bl[0];
+            }
+            for (j, &bj) in bl.iter().enumerate().skip(1) {
+                for (c, slot) in acc.iter_mut().enumerate().take(w) {
+                    *slot += a[(i + c) * rows + j] * bj;
+                }
+            }
+            for (c, v) in acc.iter().enumerate().take(w) {
+                out[(i + c, l)] = *v;
+            }
+            i += w;
+        }
+    }
+    out
+}
+
+/// X ← X − U·C in place, for U of `rows` rows held column-major in `u` (e.g. a run of a
+/// matrix's columns) and C of U's columns by X's, with no temporary of X's size. Through the matrix-multiply kernel when every dimension is past nalgebra's small
+/// sizes; otherwise (a term of a few columns, or a model grown by a few directions) by blocks
+/// of rows, so U is read once whatever C's width (nalgebra's own loop reads all of U once per
+/// column of C). Rounding differs from forming U·C first by the order of the subtractions.
+pub(crate) fn sub_mul(x: &mut DMatrix<f64>, u: &[f64], rows: usize, c: &DMatrix<f64>) {
+    let k = x.ncols();
+    sub_mul_slice(x.as_mut_slice(), k, u, rows, c);
+}
+
+/// [`sub_mul`] on the `k` columns of `rows` rows held column-major in `x` (e.g. a run of a
+/// matrix's columns).
+pub(crate) fn sub_mul_slice(x: &mut [f64], k: usize, u: &[f64], rows: usize, c: &DMatrix<f64>) {
+    let n = rows;
+    let m = u.len().checked_div(rows).unwrap_or(0);
+    assert_eq!(
+        (x.len(), c.nrows(), c.ncols()),
+        (n * k, m, k),
+        "sub_mul: shapes differ"
+    );
+    if n == 0 || m == 0 || k == 0 {
+        return;
+    }
+    if n > NALGEBRA_SMALL_DIM && m > NALGEBRA_SMALL_DIM && k > NALGEBRA_SMALL_DIM {
+        let uv = nalgebra::DMatrixView::from_slice(u, n, m);
+        nalgebra::DMatrixViewMut::from_slice(x, n, k).gemm(-1.0, &uv, c, 1.0);
+        return;
+    }
+    const BLOCK: usize = 512;
+    let mut from = 0;
+    while from < n {
+        let len = BLOCK.min(n - from);
+        for j in 0..m {
+            let uj = &u[j * n + from..j * n + from + len];
+            for l in 0..k {
+                let w = c[(j, l)];
+                if w == 0.0 {
+                    continue;
+                }
+                let xl = &mut x[l * n + from..l * n + from + len];
+                for (xr, ur) in xl.iter_mut().zip(uj) {
+                    *xr -= w * ur;
+                }
+            }
+        }
+        from += len;
+    }
+}
+
+/// AᵀA through the matrix-multiply kernel, made exactly symmetric (the mean of the product and
+/// its transpose): [`gram`]'s dot product per entry reads every column once per other column,
+/// which on tall matrices of tens of columns costs several times more.
+pub(crate) fn gram_by_kernel(a: &DMatrix<f64>) -> DMatrix<f64> {
+    let g = transpose_mul_view(a.as_slice(), a.nrows(), &a.as_view());
+    let gt = g.transpose();
+    (g + gt) * 0.5
+}
+
 /// The convergence tolerance of nalgebra's own `svd` (5 ε): bounded SVDs give its results.
 pub(crate) const SVD_EPSILON: f64 = 5.0 * f64::EPSILON;
 
@@ -171,6 +313,43 @@ mod tests {
         // Columns 1..4 of A, read in place.
         let part = transpose_mul(&a.as_slice()[103..4 * 103], 103, &b);
         assert!((part - want.rows(1, 3)).norm() < 1e-12 * want.norm());
+    }
+
+    #[test]
+    fn the_view_product_equals_the_copied_transpose_to_the_bit() {
+        // Tall A (inner dimension past the kernel's blocks) and short ones (nalgebra's own
+        // loop below 6 rows or columns), against the product with a copy of Aᵀ.
+        for (rows, ca, cb) in [(3001, 23, 17), (3001, 2, 9), (40, 7, 1), (600, 6, 6)] {
+            let a = DMatrix::from_fn(rows, ca, |r, c| ((r * 13 + c * 7) as f64 * 0.011).sin());
+            let b = DMatrix::from_fn(rows, cb, |r, c| ((r * 5 + c * 3) as f64 * 0.017).cos());
+            let want = transpose_mul(a.as_slice(), rows, &b);
+            let got = transpose_mul_view(a.as_slice(), rows, &b.as_view());
+            assert_eq!(got, want, "{rows} x {ca} by {cb}");
+            let sub = b.columns(1, cb - 1).into_owned();
+            let part = transpose_mul_view(&a.as_slice()[rows..], rows, &sub.as_view());
+            assert_eq!(part, transpose_mul(&a.as_slice()[rows..], rows, &sub));
+        }
+    }
+
+    #[test]
+    fn in_place_products_equal_the_plain_ones() {
+        // Every route of `sub_mul` (kernel, blocks of rows for few columns or few directions,
+        // rows past one block) and `gram_by_kernel`, against nalgebra's products.
+        for (n, m, k) in [(1100, 9, 7), (1100, 3, 7), (1100, 9, 2), (40, 1, 1)] {
+            let u = DMatrix::from_fn(n, m, |r, c| ((r * 3 + c * 11) as f64 * 0.013).sin());
+            let c = DMatrix::from_fn(m, k, |r, c| (r as f64 - 0.5 * c as f64).cos());
+            let x = DMatrix::from_fn(n, k, |r, c| ((r + 7 * c) as f64 * 0.021).cos());
+            let want = &x - &u * &c;
+            let mut got = x.clone();
+            sub_mul(&mut got, u.as_slice(), n, &c);
+            assert!((&got - &want).norm() < 1e-12 * want.norm(), "{n} {m} {k}");
+            let want = u.transpose() * &x;
+            let got = transpose_mul_dots(u.as_slice(), n, &x);
+            assert!((&got - &want).norm() < 1e-12 * want.norm().max(1.0));
+            let g = gram_by_kernel(&u);
+            assert_eq!(g, g.transpose());
+            assert!((&g - u.transpose() * &u).norm() < 1e-12 * g.norm());
+        }
     }
 
     #[test]

@@ -298,7 +298,9 @@ impl GeometricJudgement {
     /// row: a few fits' cost. A row is an outlier when it fails against the geometry and
     /// against the structure: the structure explains rows, it accuses none the geometry
     /// clears. None when the screen cannot judge (too few rows for its columns) or cannot
-    /// decide (a failing row's neighbours fail with it: local structure it lacks).
+    /// decide: a failing row's neighbours fail with it (local structure it lacks), or a flagged
+    /// row it keeps is not predicted by its model fitted without that row
+    /// ([`super::screen::Screened::predicts_without`]: the model bent to the row).
     fn screened(
         &self,
         rig: &Rig,
@@ -327,6 +329,16 @@ impl GeometricJudgement {
                 .collect::<Vec<_>>()),
             "smooth-structure screen"
         );
+        let cleared_unpredicted = self.flagged().into_iter().find(|&i| {
+            !screened.predicts_without(i, settings.alpha) && !screened_removed(&screened, i)
+        });
+        if let Some(i) = cleared_unpredicted {
+            tracing::debug!(
+                row = i,
+                "a flagged row the screen keeps is not predicted without it: the diagnosis judges"
+            );
+            return None;
+        }
         let (found, kept) = match screened.search {
             Ok(search) => search,
             Err(e) => return Some(Screen::TooMany(e.to_string())),
@@ -359,6 +371,25 @@ impl GeometricJudgement {
         })
     }
 
+    /// The rows the geometric search flagged (indices into the observations): those it removed,
+    /// or, when it stopped at too many, as many rows as it had found, the largest against its
+    /// last fit.
+    fn flagged(&self) -> Vec<usize> {
+        match &self.search {
+            Ok((outliers, _)) => outliers.iter().map(|o| o.index).collect(),
+            Err(OutlierError::TooMany { found, .. }) => {
+                let Some((_, _, residuals)) = &self.last else {
+                    return Vec::new();
+                };
+                let mut order: Vec<usize> = (0..residuals.len()).collect();
+                order.sort_by(|&a, &b| residuals[b].norm().total_cmp(&residuals[a].norm()));
+                order.truncate(*found);
+                order
+            }
+            Err(OutlierError::Fit(_)) => Vec::new(),
+        }
+    }
+
     /// The fit on every row, nothing removed.
     fn on_every_row(
         self,
@@ -371,6 +402,15 @@ impl GeometricJudgement {
             None => identify_at(rig, obs, level)?,
         };
         Ok((chain, result, Vec::new(), None))
+    }
+}
+
+/// True when the screen's search removed row `i` (or stopped at too many: its verdict is then
+/// the warning, not a clearance).
+fn screened_removed(screened: &super::screen::Screened, i: usize) -> bool {
+    match &screened.search {
+        Ok((found, _)) => found.iter().any(|o| o.index == i),
+        Err(_) => true,
     }
 }
 

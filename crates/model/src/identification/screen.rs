@@ -29,7 +29,7 @@
 
 use super::identifiability::stacked_jacobian;
 use super::outliers::{remove_outliers, Outlier, OutlierError, OutlierSettings};
-use nalgebra::{Cholesky, DMatrix, DVector, SymmetricEigen, Vector3};
+use nalgebra::{Cholesky, DMatrix, DVector, Matrix3, SymmetricEigen, Vector3};
 use rigcal_core::basis::spline_values;
 use rigcal_core::kinematics::{ErrorParams, JointKind, ParamId, ParamKind, Robot, TransformId};
 use rigcal_core::recording::{Observation, Recording};
@@ -50,7 +50,6 @@ pub const TIME_INTERVALS: usize = 10;
 pub const RANK_TOL: f64 = 1e-10;
 
 /// The screen's outcome.
-#[derive(Debug)]
 pub struct Screened {
     /// The search: the rows removed (in the order found) and the rows kept, or too many failed.
     pub search: Result<(Vec<Outlier>, Vec<usize>), OutlierError<Infallible>>,
@@ -58,6 +57,21 @@ pub struct Screened {
     pub residuals: Vec<Vector3<f64>>,
     /// The model's rank (columns kept after the reduction).
     pub rank: usize,
+    /// The reduced model, for [`Screened::predicts_without`].
+    reduced: Reduced,
+    /// The Cholesky factor of its Gram matrix on the rows kept last and σ̂² (see
+    /// [`Screened::predicts_without`]); None when the search stopped or the Gram matrix is
+    /// singular there.
+    kept_fit: Option<(Cholesky<f64, nalgebra::Dyn>, f64)>,
+}
+
+impl std::fmt::Debug for Screened {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Screened")
+            .field("search", &self.search)
+            .field("rank", &self.rank)
+            .finish_non_exhaustive()
+    }
 }
 
 impl Screened {
@@ -113,11 +127,58 @@ pub fn screen(
         Ok::<_, Infallible>((residuals.clone(), reduced.rank()))
     });
     let rank = reduced.rank();
+    let kept_fit = match (&search, state) {
+        (Ok((_, kept)), Some(last)) if last.kept == *kept => {
+            let dof_share = 1.0 - rank as f64 / (3 * kept.len()) as f64;
+            let kept_res: Vec<Vector3<f64>> = kept.iter().map(|&k| residuals[k]).collect();
+            let s2 = rigcal_core::stats::mad_sigma(&kept_res).powi(2) / dof_share;
+            Cholesky::new(last.gram)
+                .filter(|_| dof_share > 0.0)
+                .map(|ch| (ch, s2))
+        }
+        _ => None,
+    };
     Some(Screened {
         search,
         residuals,
         rank,
+        reduced,
+        kept_fit,
     })
+}
+
+impl Screened {
+    /// True when the smooth model, fitted on the rows it kept *without row `i`* (a kept row),
+    /// predicts the row within the outlier gate: its externally studentised residual
+    /// eᵢᵀ(I − Hᵢᵢ)⁻¹eᵢ / σ̂² is below the χ²(3) quantile at 1 − `alpha`/m (Bonferroni over the m
+    /// kept rows, as the search). Hᵢᵢ = BᵢG⁻¹Bᵢᵀ is the row's 3 × 3 leverage block in the
+    /// reduced model; σ̂² the robust variance of the kept rows' residuals per coordinate, divided
+    /// by 1 − rank/(3m) (in-sample residuals shrink by the average leverage).
+    ///
+    /// Why: a model flexible enough for its rows (the screen's splines on a short recording)
+    /// bends towards gross rows and leaves each a small in-sample residual; only its
+    /// prediction from the other rows shows whether the structure explains the row or the row
+    /// shaped the structure. A row that alone determines a direction (leverage 1) cannot be
+    /// predicted at all: false. A removed row (not in the last kept set) is false too: the
+    /// search already judged it against the fit without it.
+    pub fn predicts_without(&self, i: usize, alpha: f64) -> bool {
+        let (Ok((_, kept)), Some((factor, s2))) = (&self.search, &self.kept_fit) else {
+            return false;
+        };
+        if kept.binary_search(&i).is_err() {
+            return false;
+        }
+        let b = self.reduced.a.rows(3 * i, 3) * &self.reduced.v;
+        let leverage = &b * factor.solve(&b.transpose());
+        let Some(inflation) =
+            (Matrix3::identity() - Matrix3::from_iterator(leverage.iter().copied())).try_inverse()
+        else {
+            return false;
+        };
+        let e = self.residuals[i];
+        let t = e.dot(&(inflation * e)) / s2.max(1e-300);
+        t.is_finite() && t <= rigcal_core::stats::chi2_3_isf(alpha / kept.len() as f64)
+    }
 }
 
 /// True when every row of `rows` stands out from its own neighbourhood as well as from the
