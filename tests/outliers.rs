@@ -251,7 +251,7 @@ fn with_random_gross_rows(seed: u64, count: usize, lo: f64, hi: f64) -> (Recordi
 fn more_gross_rows_than_the_cap_are_refused_never_partly_removed_in_silence() {
     // 24 of 100 rows gross (past the 20 % cap): the identification must remove none and say
     // so. 18 of 100 (within the cap) are all removed and named. Before the screen's
-    // leave-one-out check (`Screened::predicts_without`) its smooth model (rank 85 on 300
+    // leave-one-out check (`Screened::keeps_unpredicted`) its smooth model (rank 85 on 300
     // equations) bent to the gross rows: identify removed 0–7 of the 24 without a warning in
     // 15 of these 24 cases (seed 12 at 1–2 mm: none removed, no warning), and at seed 4 not
     // the 18 planted.

@@ -111,6 +111,17 @@ fn inset(b: &Bounds, f: f64) -> Bounds {
     }
 }
 
+/// The paths a rule found, when it found all [`TEN_PATHS`].
+fn all_ten<P>(paths: Vec<P>) -> Result<Vec<P>, PathsError> {
+    if paths.len() < TEN_PATHS {
+        return Err(PathsError::TooFew {
+            found: paths.len(),
+            wanted: TEN_PATHS,
+        });
+    }
+    Ok(paths)
+}
+
 /// Ten straight joint-space lines of [`PATH_POINTS`] points for section 6's models, by a rule
 /// fixed before any was evaluated: ends (q1, q2, q3) drawn uniformly inside the joint-space
 /// division's box inset by 10 % of each range (ChaCha8, seed [`TEN_PATHS_SEED`]); a line is
@@ -165,13 +176,7 @@ pub fn ten_joint_paths(rig: &Rig) -> Result<Vec<PathSpec>, PathsError> {
             paths.push(path);
         }
     }
-    if paths.len() < TEN_PATHS {
-        return Err(PathsError::TooFew {
-            found: paths.len(),
-            wanted: TEN_PATHS,
-        });
-    }
-    Ok(paths)
+    all_ten(paths)
 }
 
 /// Which extra measurements a sweep adds.
@@ -608,13 +613,7 @@ pub fn ten_rig_paths(rig: &Rig) -> Result<Vec<[[f64; 3]; 2]>, PathsError> {
             paths.push(ends);
         }
     }
-    if paths.len() < TEN_PATHS {
-        return Err(PathsError::TooFew {
-            found: paths.len(),
-            wanted: TEN_PATHS,
-        });
-    }
-    Ok(paths)
+    all_ten(paths)
 }
 
 /// Section 7's model of the sweep's seed directory `dir` along each of `paths`, measured by

@@ -324,7 +324,7 @@ impl TrackedTerm {
             } else {
                 dense::transpose_mul_view(new, n, &self.xp.as_view())
             };
-            self.gram -= dense::transpose_mul(c.as_slice(), c.nrows(), &c);
+            self.gram -= dense::transpose_mul_view(c.as_slice(), c.nrows(), &c.as_view());
             let old = std::mem::replace(&mut self.products, DMatrix::zeros(0, 0));
             let m = old.nrows();
             self.products = DMatrix::from_fn(m + c.nrows(), c.ncols(), |i, j| {

@@ -114,26 +114,12 @@ pub(crate) fn transpose_times(a: &DMatrix<f64>, x: &DVector<f64>) -> DVector<f64
     })
 }
 
-/// AᵀB for A of `rows` rows held column-major in `a` (e.g. a run of a matrix's columns),
-/// through nalgebra's matrix-multiply kernel on a copy of Aᵀ: nalgebra's own `tr_mul` takes
-/// an entry-by-entry dot product, several times slower on the tall matrices here.
-pub(crate) fn transpose_mul(a: &[f64], rows: usize, b: &DMatrix<f64>) -> DMatrix<f64> {
-    assert_eq!(
-        rows,
-        b.nrows(),
-        "transpose_mul: A and B have different row counts"
-    );
-    if rows == 0 || a.is_empty() {
-        return DMatrix::zeros(a.len().checked_div(rows).unwrap_or(0), b.ncols());
-    }
-    let cols = a.len() / rows;
-    nalgebra::DMatrixView::from_slice(a, rows, cols).transpose() * b
-}
-
-/// AᵀB for A of `rows` rows held column-major in `a`, read in place: Aᵀ is a strided view of
-/// A's storage, so no copy of it is made (on the diagnosis's tall matrices that copy, tens of
-/// megabytes per call, cost more than the product). The same matrix-multiply kernel sees the
-/// same numbers in the same order as in [`transpose_mul`], so the result is the same to the bit.
+/// AᵀB for A of `rows` rows held column-major in `a` (e.g. a run of a matrix's columns), read
+/// in place: Aᵀ is a strided view of A's storage, so no copy of it is made (on the diagnosis's
+/// tall matrices that copy, tens of megabytes per call, cost more than the product), and the
+/// product goes through nalgebra's matrix-multiply kernel (its own `tr_mul` takes an
+/// entry-by-entry dot product, several times slower here). The kernel sees the same numbers in
+/// the same order as for a copy of Aᵀ, so the result is the same to the bit.
 pub(crate) fn transpose_mul_view(
     a: &[f64],
     rows: usize,
@@ -299,6 +285,12 @@ pub(crate) fn bounded_svd(
 mod tests {
     use super::*;
 
+    /// AᵀB through a copy of Aᵀ (A of `rows` rows, column-major in `a`): the reference the
+    /// in-place products are checked against.
+    fn copied_transpose_mul(a: &[f64], rows: usize, b: &DMatrix<f64>) -> DMatrix<f64> {
+        nalgebra::DMatrixView::from_slice(a, rows, a.len() / rows).transpose() * b
+    }
+
     #[test]
     fn gram_and_transpose_times_equal_the_products() {
         let a = DMatrix::from_fn(103, 5, |r, c| {
@@ -309,9 +301,10 @@ mod tests {
         assert!((transpose_times(&a, &x) - a.transpose() * &x).norm() < 1e-12);
         let b = DMatrix::from_fn(103, 7, |r, c| (r as f64 * 0.3 + c as f64).cos());
         let want = a.transpose() * &b;
-        assert!((transpose_mul(a.as_slice(), 103, &b) - &want).norm() < 1e-12 * want.norm());
+        let got = transpose_mul_view(a.as_slice(), 103, &b.as_view());
+        assert!((got - &want).norm() < 1e-12 * want.norm());
         // Columns 1..4 of A, read in place.
-        let part = transpose_mul(&a.as_slice()[103..4 * 103], 103, &b);
+        let part = transpose_mul_view(&a.as_slice()[103..4 * 103], 103, &b.as_view());
         assert!((part - want.rows(1, 3)).norm() < 1e-12 * want.norm());
     }
 
@@ -322,12 +315,15 @@ mod tests {
         for (rows, ca, cb) in [(3001, 23, 17), (3001, 2, 9), (40, 7, 1), (600, 6, 6)] {
             let a = DMatrix::from_fn(rows, ca, |r, c| ((r * 13 + c * 7) as f64 * 0.011).sin());
             let b = DMatrix::from_fn(rows, cb, |r, c| ((r * 5 + c * 3) as f64 * 0.017).cos());
-            let want = transpose_mul(a.as_slice(), rows, &b);
+            let want = copied_transpose_mul(a.as_slice(), rows, &b);
             let got = transpose_mul_view(a.as_slice(), rows, &b.as_view());
             assert_eq!(got, want, "{rows} x {ca} by {cb}");
             let sub = b.columns(1, cb - 1).into_owned();
             let part = transpose_mul_view(&a.as_slice()[rows..], rows, &sub.as_view());
-            assert_eq!(part, transpose_mul(&a.as_slice()[rows..], rows, &sub));
+            assert_eq!(
+                part,
+                copied_transpose_mul(&a.as_slice()[rows..], rows, &sub)
+            );
         }
     }
 

@@ -300,7 +300,7 @@ impl GeometricJudgement {
     /// clears. None when the screen cannot judge (too few rows for its columns) or cannot
     /// decide: a failing row's neighbours fail with it (local structure it lacks), or a flagged
     /// row it keeps is not predicted by its model fitted without that row
-    /// ([`super::screen::Screened::predicts_without`]: the model bent to the row).
+    /// ([`super::screen::Screened::keeps_unpredicted`]: the model bent to the row).
     fn screened(
         &self,
         rig: &Rig,
@@ -329,9 +329,10 @@ impl GeometricJudgement {
                 .collect::<Vec<_>>()),
             "smooth-structure screen"
         );
-        let cleared_unpredicted = self.flagged().into_iter().find(|&i| {
-            !screened.predicts_without(i, settings.alpha) && !screened_removed(&screened, i)
-        });
+        let cleared_unpredicted = self
+            .flagged()
+            .into_iter()
+            .find(|&i| screened.keeps_unpredicted(i, settings.alpha));
         if let Some(i) = cleared_unpredicted {
             tracing::debug!(
                 row = i,
@@ -402,15 +403,6 @@ impl GeometricJudgement {
             None => identify_at(rig, obs, level)?,
         };
         Ok((chain, result, Vec::new(), None))
-    }
-}
-
-/// True when the screen's search removed row `i` (or stopped at too many: its verdict is then
-/// the warning, not a clearance).
-fn screened_removed(screened: &super::screen::Screened, i: usize) -> bool {
-    match &screened.search {
-        Ok((found, _)) => found.iter().any(|o| o.index == i),
-        Err(_) => true,
     }
 }
 

@@ -57,10 +57,10 @@ pub struct Screened {
     pub residuals: Vec<Vector3<f64>>,
     /// The model's rank (columns kept after the reduction).
     pub rank: usize,
-    /// The reduced model, for [`Screened::predicts_without`].
+    /// The reduced model, for [`Screened::keeps_unpredicted`].
     reduced: Reduced,
     /// The Cholesky factor of its Gram matrix on the rows kept last and σ̂² (see
-    /// [`Screened::predicts_without`]); None when the search stopped or the Gram matrix is
+    /// [`Screened::keeps_unpredicted`]); None when the search stopped or the Gram matrix is
     /// singular there.
     kept_fit: Option<(Cholesky<f64, nalgebra::Dyn>, f64)>,
 }
@@ -148,36 +148,41 @@ pub fn screen(
 }
 
 impl Screened {
-    /// True when the smooth model, fitted on the rows it kept *without row `i`* (a kept row),
-    /// predicts the row within the outlier gate: its externally studentised residual
-    /// eᵢᵀ(I − Hᵢᵢ)⁻¹eᵢ / σ̂² is below the χ²(3) quantile at 1 − `alpha`/m (Bonferroni over the m
-    /// kept rows, as the search). Hᵢᵢ = BᵢG⁻¹Bᵢᵀ is the row's 3 × 3 leverage block in the
-    /// reduced model; σ̂² the robust variance of the kept rows' residuals per coordinate, divided
-    /// by 1 − rank/(3m) (in-sample residuals shrink by the average leverage).
+    /// True when the search kept row `i` although the smooth model, fitted on the rows it kept
+    /// *without row `i`*, does not predict it within the outlier gate: its externally
+    /// studentised residual eᵢᵀ(I − Hᵢᵢ)⁻¹eᵢ / σ̂² is above the χ²(3) quantile at 1 − `alpha`/m
+    /// (Bonferroni over the m kept rows, as the search). Hᵢᵢ = BᵢG⁻¹Bᵢᵀ is the row's 3 × 3
+    /// leverage block in the reduced model; σ̂² the robust variance of the kept rows' residuals
+    /// per coordinate, divided by 1 − rank/(3m) (in-sample residuals shrink by the average
+    /// leverage). A kept row that cannot be predicted at all (it alone determines a direction,
+    /// or the kept rows' Gram matrix is singular) counts as not predicted. False for a row the
+    /// search removed (judged against the fit without it already) and when the search stopped
+    /// at too many (its verdict is the warning).
     ///
     /// Why: a model flexible enough for its rows (the screen's splines on a short recording)
     /// bends towards gross rows and leaves each a small in-sample residual; only its
     /// prediction from the other rows shows whether the structure explains the row or the row
-    /// shaped the structure. A row that alone determines a direction (leverage 1) cannot be
-    /// predicted at all: false. A removed row (not in the last kept set) is false too: the
-    /// search already judged it against the fit without it.
-    pub fn predicts_without(&self, i: usize, alpha: f64) -> bool {
-        let (Ok((_, kept)), Some((factor, s2))) = (&self.search, &self.kept_fit) else {
+    /// shaped the structure.
+    pub fn keeps_unpredicted(&self, i: usize, alpha: f64) -> bool {
+        let Ok((_, kept)) = &self.search else {
             return false;
         };
         if kept.binary_search(&i).is_err() {
             return false;
         }
+        let Some((factor, s2)) = &self.kept_fit else {
+            return true;
+        };
         let b = self.reduced.a.rows(3 * i, 3) * &self.reduced.v;
         let leverage = &b * factor.solve(&b.transpose());
         let Some(inflation) =
             (Matrix3::identity() - Matrix3::from_iterator(leverage.iter().copied())).try_inverse()
         else {
-            return false;
+            return true;
         };
         let e = self.residuals[i];
         let t = e.dot(&(inflation * e)) / s2.max(1e-300);
-        t.is_finite() && t <= rigcal_core::stats::chi2_3_isf(alpha / kept.len() as f64)
+        !(t.is_finite() && t <= rigcal_core::stats::chi2_3_isf(alpha / kept.len() as f64))
     }
 }
 
